@@ -1,0 +1,82 @@
+// Module loggers sharing one set of sinks.
+#include "config/log.h"
+
+#include <cstdlib>
+#include <mutex>
+#include <vector>
+
+#include <spdlog/sinks/basic_file_sink.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+
+namespace rig {
+namespace {
+
+struct Registry {
+  std::mutex mu;
+  std::vector<spdlog::sink_ptr> sinks;
+  spdlog::level::level_enum level = spdlog::level::info;
+  bool level_from_env = false;
+};
+
+Registry& R() {
+  static Registry* r = [] {
+    auto* reg = new Registry;
+    auto console = std::make_shared<spdlog::sinks::stderr_color_sink_mt>();
+    console->set_pattern("%^%L%$ %-7n %v");
+    reg->sinks.push_back(console);
+    if (const char* env = std::getenv("RIG_LOG_LEVEL")) {
+      auto lvl = spdlog::level::from_str(env);
+      if (lvl != spdlog::level::off || std::string(env) == "off") reg->level = lvl;
+    }
+    return reg;
+  }();
+  return *r;
+}
+
+}  // namespace
+
+std::shared_ptr<spdlog::logger> Log(const std::string& module) {
+  Registry& r = R();
+  std::lock_guard lock(r.mu);
+  if (auto l = spdlog::get(module)) return l;
+  auto l = std::make_shared<spdlog::logger>(module, r.sinks.begin(), r.sinks.end());
+  l->set_level(r.level);
+  l->flush_on(spdlog::level::warn);
+  spdlog::register_logger(l);
+  return l;
+}
+
+bool SetLogLevel(const std::string& level) {
+  Registry& r = R();
+  std::string name = level;
+  if (name.empty()) {
+    const char* env = std::getenv("RIG_LOG_LEVEL");
+    name = env ? env : "info";
+  }
+  auto lvl = spdlog::level::from_str(name);
+  if (lvl == spdlog::level::off && name != "off") return false;
+  std::lock_guard lock(r.mu);
+  r.level = lvl;
+  spdlog::apply_all([&](std::shared_ptr<spdlog::logger> l) { l->set_level(lvl); });
+  return true;
+}
+
+bool AddLogFile(const std::string& path) {
+  Registry& r = R();
+  spdlog::sink_ptr file;
+  try {
+    file = std::make_shared<spdlog::sinks::basic_file_sink_mt>(path, false);
+  } catch (const spdlog::spdlog_ex&) {
+    return false;
+  }
+  file->set_pattern("%Y-%m-%dT%H:%M:%S.%e %L %-7n %v");
+  std::lock_guard lock(r.mu);
+  r.sinks.push_back(file);
+  spdlog::apply_all([&](std::shared_ptr<spdlog::logger> l) {
+    l->sinks().push_back(file);
+    l->flush_on(spdlog::level::info);
+  });
+  return true;
+}
+
+}  // namespace rig

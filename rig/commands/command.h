@@ -1,0 +1,40 @@
+// The rig command table: one entry per command, each command in its own file.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "config/result.h"
+
+namespace rig {
+
+struct Command {
+  const char* name;
+  const char* summary;
+  // argv[0] is the command's name; returns the process exit code (0, 1, 2, 128+signal).
+  int (*run)(int argc, char** argv);
+};
+
+// Every command, in the order `rig --help` lists them. An explicit table: no static
+// self-registration (static libraries drop registrars nobody references).
+const std::vector<Command>& Commands();
+
+// Parses a command's own options. Returns an exit code when the command must stop now
+// (0 after --help, 2 after a usage error), nothing when it should go on.
+std::optional<int> ParseCommandLine(CLI::App& app, int argc, char** argv);
+
+// Adds --log-level to a command; call ApplyLogLevel after parsing.
+void AddLogLevelOption(CLI::App& app, std::string* level);
+// Returns an exit code (2) if the level is unknown.
+std::optional<int> ApplyLogLevel(const std::string& level);
+
+// Prints "rig <command>: <error>" and returns the error's exit code (2 bad input, 1 other).
+int ReportError(const char* command, const Error& error);
+
+// The command functions (one file each in rig/commands/).
+int RunCheckConfig(int argc, char** argv);
+
+}  // namespace rig

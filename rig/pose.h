@@ -1,0 +1,28 @@
+// Lamp poses and the grid the session visits.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "config/config.h"
+#include "config/result.h"
+
+namespace rig {
+
+// A lamp position in the rig's own angles.
+struct Pose {
+  double h_deg = 0;
+  double v_deg = 0;
+  // Stable, sortable name: "h030_v10"; fractional "h032.5_v10"; negative "hm010_v05".
+  std::string Name() const;
+  bool operator==(const Pose&) const = default;
+};
+
+// Parses a name made by Pose::Name().
+Result<Pose> ParsePoseName(const std::string& name);
+
+// The poses of the grid in visiting order: serpentine (every other row reversed, so each
+// move is one step) or raster.
+std::vector<Pose> PlanGrid(const GridConfig& grid);
+
+}  // namespace rig
