@@ -1,0 +1,39 @@
+// OpenEXR reading and writing: named float channels plus string attributes in the header,
+// so that metadata (pose, exposures, response id, basis, order ...) travels with pixels.
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "config/result.h"
+
+namespace rig {
+
+enum class ExrPixelType { kHalf, kFloat };
+
+struct ExrImage {
+  int width = 0, height = 0;
+  std::vector<std::string> channel_names;  // e.g. "R", "G", "B" or "c00.R", "c01.R" ...
+  std::vector<cv::Mat> channels;           // each CV_32FC1, height x width
+  std::map<std::string, std::string> attributes;  // string attributes of the header
+};
+
+// Writes atomically (temporary file in the same folder, then rename): a reader never sees a
+// partial file under `path`. `threads` is OpenEXR's compression thread count.
+Status WriteExr(const std::string& path, const ExrImage& image,
+                ExrPixelType type = ExrPixelType::kFloat, int threads = 2);
+Result<ExrImage> ReadExr(const std::string& path, int threads = 2);
+
+// Convenience for radiance maps: a CV_32FC3 image in OpenCV's BGR order <-> channels R, G, B.
+Status WriteRgbExr(const std::string& path, const cv::Mat& bgr,
+                   const std::map<std::string, std::string>& attributes = {},
+                   ExrPixelType type = ExrPixelType::kFloat, int threads = 2);
+// Reads R, G, B (an EXR without them is an error naming the file) into a CV_32FC3 BGR image.
+Result<cv::Mat> ReadRgbExr(const std::string& path,
+                           std::map<std::string, std::string>* attributes = nullptr,
+                           int threads = 2);
+
+}  // namespace rig
