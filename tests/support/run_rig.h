@@ -21,3 +21,20 @@ std::string SharedDir();
 std::string FreshTempDir(const std::string& name);
 
 }  // namespace rig::testing
+
+#include <sys/types.h>
+
+#include <vector>
+
+namespace rig::testing {
+
+// Starts `$RIG_BINARY args...` in the background, its output appended to `log_path`.
+pid_t SpawnRig(const std::vector<std::string>& args, const std::string& log_path);
+// Waits for it; returns the exit code, or 128+N when killed by signal N.
+int WaitRig(pid_t pid);
+
+// Writes config/sim.toml with `extra` TOML appended into `dir`/sim.toml, with the tables of
+// `extra` merged over the default ones (keys given in `extra` replace the defaults).
+std::string WriteSimConfig(const std::string& dir, const std::string& extra);
+
+}  // namespace rig::testing
