@@ -112,6 +112,8 @@ std::string WriteSimConfig(const std::string& dir, const std::string& extra) {
     done.insert(t);
   };
   while (std::getline(bin, line)) {
+    line.erase(0, line.find_first_not_of(" \t") == std::string::npos ? line.size()
+                                                                      : line.find_first_not_of(" \t"));
     if (!line.empty() && line[0] == '[') {
       flush(current);
       current = line.substr(1, line.find(']') - 1);
