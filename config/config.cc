@@ -405,6 +405,7 @@ void VisitConfig(Config& c, V& v) {
       v.Field("units_per_degree", g.units_per_degree, kPositive);
       v.Field("completion", g.completion, {"dwell", "poll"});
       v.Field("banner_timeout_s", g.banner_timeout_s, Range{0.01, 60});
+      v.Field("poll_interval_s", g.poll_interval_s, Range{0.001, 10});
     });
     section("maestro", false, [&] {
       auto& s = m.maestro;
@@ -414,6 +415,8 @@ void VisitConfig(Config& c, V& v) {
       v.Field("h_us_per_deg", s.h_us_per_deg, Range{-100, 100});
       v.Field("v_us_at_zero", s.v_us_at_zero, Range{64, 4080});
       v.Field("v_us_per_deg", s.v_us_per_deg, Range{-100, 100});
+      v.Field("poll_interval_s", s.poll_interval_s, Range{0.001, 10});
+      v.Field("position_tolerance_us", s.position_tolerance_us, Range{0.25, 1000});
     });
   });
   section("lamp", true, [&] {
@@ -443,6 +446,7 @@ void VisitConfig(Config& c, V& v) {
     v.OrderField("order", p.order, Range{0, 12});
     v.Field("max_order", p.max_order, Range{0, 12});
     v.Field("order_tolerance", p.order_tolerance, Range{0, 1});
+    v.Field("max_condition_number", p.max_condition_number, Range{1, 1e300});
     v.Field("fit_space", p.fit_space, {"linear", "srgb", "log"});
     v.Field("model_pixel_type", p.model_pixel_type, {"half", "float"});
     v.Field("reference_patch_px", p.reference_patch_px, Range{0, 1e6});

@@ -51,12 +51,15 @@ struct GrblConfig {
   double units_per_degree = 1.0;       // controller axis units per degree
   std::string completion = "dwell";    // "dwell" (G4 P0) | "poll" ('?' until Idle)
   double banner_timeout_s = 3;
+  double poll_interval_s = 0.2;        // '?' period with completion = "poll" (GRBL: <= 5 Hz)
 };
 
 struct MaestroConfig {
   int h_channel = 0, v_channel = 1;
   double h_us_at_zero = 1000, h_us_per_deg = 10;  // pulse width calibration
   double v_us_at_zero = 1000, v_us_per_deg = 10;
+  double poll_interval_s = 0.02;       // moving-state (0x93) query period
+  double position_tolerance_us = 1.0;  // reported position vs target after a move
 };
 
 struct MotorConfig {
@@ -107,6 +110,7 @@ struct ProcessConfig {
   int order = -1;                       // -1: "auto" (chosen from held-out error)
   int max_order = 6;
   double order_tolerance = 0.02;        // relative to the best held-out error
+  double max_condition_number = 1e6;    // beyond it an unregularised fit is refused
   std::string fit_space = "linear";     // "linear" | "srgb" | "log"
   std::string model_pixel_type = "half";  // "half" | "float"
   // Lamp radiance from a reference patch of known reflectance (x, y, w, h; w = 0: off).

@@ -36,5 +36,13 @@ int ReportError(const char* command, const Error& error);
 
 // The command functions (one file each in rig/commands/).
 int RunCheckConfig(int argc, char** argv);
+int RunCapture(int argc, char** argv);
+int RunResume(int argc, char** argv);
+int RunProcess(int argc, char** argv);
+int RunFit(int argc, char** argv);
+int RunRender(int argc, char** argv);
+int RunTonemap(int argc, char** argv);
+int RunHdr(int argc, char** argv);
+int RunRatioCheck(int argc, char** argv);
 
 }  // namespace rig

@@ -5,7 +5,15 @@ namespace rig {
 
 const std::vector<Command>& Commands() {
   static const std::vector<Command> kCommands = {
+      {"capture", "acquire a session (on the rig, or simulated with --dry-run)", RunCapture},
+      {"resume", "continue an interrupted session", RunResume},
+      {"process", "(re)process stored brackets into radiance maps and the model", RunProcess},
       {"check-config", "validate a configuration file", RunCheckConfig},
+      {"hdr", "merge one exposure bracket into a radiance map (EXR)", RunHdr},
+      {"ratio-check", "the paper's Fig. 6: pixel ratios from intensity vs radiance", RunRatioCheck},
+      {"fit", "fit a reflectance model to radiance maps or an RTI capture", RunFit},
+      {"render", "relight a reflectance model with lamps", RunRender},
+      {"tonemap", "tone-map an HDR image (.exr, .hdr) for a screen", RunTonemap},
   };
   return kCommands;
 }

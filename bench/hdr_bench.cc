@@ -1,0 +1,280 @@
+// HDR benchmark: ours beside OpenCV's CalibrateDebevec + MergeDebevec on the same frames, in
+// one run: accuracy against known radiance, response error, merge and recovery speed, decoding
+// and EXR writing. Usage: hdr_bench [--width W --height H --frames N --repeat R --threads T]
+//                                   [--shared DIR] [--sweep]
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/photo.hpp>
+
+#include "process/exr_io.h"
+#include "process/hdr.h"
+#include "process/image_io.h"
+#include "tests/support/hdr_synth.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using rig::Bracket;
+using Clock = std::chrono::steady_clock;
+
+struct Args {
+  int width = 3000, height = 2000, frames = 10, repeat = 5, threads = 2;
+  std::string shared = "/work/shared";
+  bool sweep = false;
+};
+
+template <typename Fn>
+std::pair<double, double> Time(int repeat, Fn&& fn) {  // (best, median) seconds
+  std::vector<double> t;
+  for (int i = 0; i < repeat; ++i) {
+    auto a = Clock::now();
+    fn();
+    t.push_back(std::chrono::duration<double>(Clock::now() - a).count());
+  }
+  std::sort(t.begin(), t.end());
+  return {t.front(), t[t.size() / 2]};
+}
+
+std::vector<cv::Mat> Images(const Bracket& b) {
+  std::vector<cv::Mat> v;
+  for (const auto& f : b) v.push_back(f.image);
+  return v;
+}
+cv::Mat Times(const Bracket& b) {
+  cv::Mat t(int(b.size()), 1, CV_32F);
+  for (size_t i = 0; i < b.size(); ++i) t.at<float>(int(i)) = float(b[i].exposure.count());
+  return t;
+}
+
+struct Accuracy {
+  double ours_rms = 0, cv_rms = 0, ours_g = 0, cv_g = 0;
+  size_t pixels = 0;
+};
+
+// Accuracy of both pipelines on one bracket with known radiance.
+Accuracy Compare(const Bracket& b, const cv::Mat& truth, const rig::synth::FilmicResponse& f,
+                 const rig::ResponseOptions& ro, int threads) {
+  Accuracy a;
+  const Bracket brackets[1] = {b};
+  auto resp = rig::RecoverResponse(brackets, ro);
+  if (!resp.ok()) {
+    std::fprintf(stderr, "recovery failed: %s\n", resp.error().ToString().c_str());
+    std::exit(1);
+  }
+  rig::MergeOptions mo;
+  mo.threads = threads;
+  mo.max_unrecorded_fraction = 1.0;
+  auto map = rig::MergeBracket(b, *resp, mo);
+  if (!map.ok()) {
+    std::fprintf(stderr, "merge failed: %s\n", map.error().ToString().c_str());
+    std::exit(1);
+  }
+  a.ours_rms = rig::synth::LogRmsError(map->radiance, truth, b, &a.pixels);
+  a.ours_g = rig::synth::MaxResponseError(
+      [&](int c, int z) { return resp->log_exposure[c][z]; }, f, 13, 242);
+
+  cv::Mat cv_resp, cv_hdr;
+  cv::createCalibrateDebevec()->process(Images(b), cv_resp, Times(b));
+  cv::createMergeDebevec()->process(Images(b), cv_hdr, Times(b), cv_resp);
+  a.cv_rms = rig::synth::LogRmsError(cv_hdr, truth, b);
+  a.cv_g = rig::synth::MaxResponseError(
+      [&](int c, int z) { return std::log(double(cv_resp.at<cv::Vec3f>(z)[c])); }, f, 13, 242);
+  return a;
+}
+
+void PrintAccuracy(const char* name, const Accuracy& a) {
+  std::printf("%-34s %10.4f %10.4f %8.1fx   %8.4f %8.4f   %zu\n", name, a.ours_rms, a.cv_rms,
+              a.cv_rms / a.ours_rms, a.ours_g, a.cv_g, a.pixels);
+}
+
+// A real HDR image as a bracket with known truth: scaled to median 1, negatives clipped,
+// exposures covering its 0.5th..99.5th percentiles.
+bool RealBracket(const std::string& path, const rig::synth::FilmicResponse& f, int frames,
+                 cv::Mat* truth, Bracket* bracket) {
+  cv::Mat e;
+  if (path.ends_with(".exr")) {
+    auto r = rig::ReadRgbExr(path);
+    if (!r.ok()) return false;
+    e = *r;
+  } else {
+    e = cv::imread(path, cv::IMREAD_UNCHANGED);
+    if (e.empty()) return false;
+    e.convertTo(e, CV_32FC3);
+  }
+  e = cv::max(e, 0.0f);
+  const double lo = rig::synth::Percentile(e, 0.005), hi = rig::synth::Percentile(e, 0.995);
+  *truth = e;
+  *bracket = rig::synth::RenderBracket(e, rig::synth::ExposuresFor(lo, hi, frames), f, 11);
+  return true;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args args;
+  for (int i = 1; i < argc; ++i) {
+    std::string a = argv[i];
+    auto next = [&] { return i + 1 < argc ? std::string(argv[++i]) : std::string(); };
+    if (a == "--width") args.width = std::atoi(next().c_str());
+    else if (a == "--height") args.height = std::atoi(next().c_str());
+    else if (a == "--frames") args.frames = std::atoi(next().c_str());
+    else if (a == "--repeat") args.repeat = std::max(1, std::atoi(next().c_str()));
+    else if (a == "--threads") args.threads = std::max(1, std::atoi(next().c_str()));
+    else if (a == "--shared") args.shared = next();
+    else if (a == "--sweep") args.sweep = true;
+    else {
+      std::fprintf(stderr, "usage: hdr_bench [--width W] [--height H] [--frames N] [--repeat R] "
+                           "[--threads T] [--shared DIR] [--sweep]\n");
+      return 2;
+    }
+  }
+  cv::setNumThreads(args.threads);
+  const rig::synth::FilmicResponse film;
+  rig::ResponseOptions ro;
+  ro.threads = args.threads;
+
+  std::printf("hdr_bench: %dx%d (%.1f MP) x %d frames, threads %d, repeat %d (best of)\n",
+              args.width, args.height, args.width * args.height / 1e6, args.frames, args.threads,
+              args.repeat);
+  std::printf("truth: filmic per-channel response (Hable curve, not a gamma), seeded shot+read "
+              "noise, 8-bit\n\n");
+
+  // --- the synthetic 6 MP bracket ---
+  auto t0 = Clock::now();
+  cv::Mat truth = rig::synth::SyntheticRadiance(args.width, args.height);
+  const Bracket b = rig::synth::RenderBracket(
+      truth, rig::synth::ExposuresFor(0.01, 300.0, args.frames), film, 7, 5e-5, 2.5e-4, CV_8U,
+      args.threads);
+  std::printf("rendered the bracket in %.2f s\n\n",
+              std::chrono::duration<double>(Clock::now() - t0).count());
+
+  // --- accuracy ---
+  std::printf("ACCURACY (log-radiance RMS on well-recorded pixels, mean offset per channel "
+              "removed;\n          response: max |g - g_true| over levels 13..242, mean offset "
+              "removed)\n");
+  std::printf("%-34s %10s %10s %9s   %8s %8s   %s\n", "bracket", "ours", "opencv", "ratio",
+              "g ours", "g opencv", "pixel-channels");
+  PrintAccuracy("synthetic 6 MP", Compare(b, truth, film, ro, args.threads));
+  const char* real[] = {"mpi_atrium_3.hdr", "Desk.exr"};
+  for (const char* name : real) {
+    cv::Mat rt;
+    Bracket rb;
+    const std::string path = args.shared + "/data/hdr/" + name;
+    if (!RealBracket(path, film, args.frames, &rt, &rb)) {
+      std::printf("%-34s (cannot read %s)\n", name, path.c_str());
+      continue;
+    }
+    PrintAccuracy(fmt::format("{} {}x{}", name, rt.cols, rt.rows).c_str(),
+                  Compare(rb, rt, film, ro, args.threads));
+  }
+
+  // --- speed ---
+  const double mp = args.width * double(args.height) / 1e6;
+  const Bracket brackets[1] = {b};
+  rig::ResponseCurve resp;
+  auto rec = Time(args.repeat, [&] { resp = *rig::RecoverResponse(brackets, ro); });
+  cv::Mat cv_resp;
+  auto cv_rec = Time(args.repeat, [&] {
+    cv::createCalibrateDebevec()->process(Images(b), cv_resp, Times(b));
+  });
+  rig::MergeOptions mo;
+  mo.threads = args.threads;
+  rig::RadianceMap map;
+  auto merge = Time(args.repeat, [&] { map = *rig::MergeBracket(b, resp, mo); });
+  mo.threads = 1;
+  auto merge1 = Time(args.repeat, [&] { (void)*rig::MergeBracket(b, resp, mo); });
+  cv::Mat cv_hdr;
+  auto cv_merge = Time(std::max(1, args.repeat / 2), [&] {
+    cv::createMergeDebevec()->process(Images(b), cv_hdr, Times(b), cv_resp);
+  });
+  std::printf("\nSPEED (%.1f MP x %d frames)           ours      opencv    ratio\n", mp,
+              args.frames);
+  std::printf("response recovery, s (best/median)  %.4f/%.4f  %.4f/%.4f\n", rec.first,
+              rec.second, cv_rec.first, cv_rec.second);
+  std::printf("merge MP/s (best, %d threads)        %8.1f  %8.2f  %6.1fx\n", args.threads,
+              mp / merge.first, mp / cv_merge.first, cv_merge.first / merge.first);
+  std::printf("merge MP/s (median, %d threads)      %8.1f  %8.2f  %6.1fx\n", args.threads,
+              mp / merge.second, mp / cv_merge.second, cv_merge.second / merge.second);
+  std::printf("merge MP/s (best, 1 thread)          %8.1f\n", mp / merge1.first);
+
+  // --- decoding and EXR writing ---
+  const fs::path dir = fs::temp_directory_path() / ("rig_hdr_bench_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  std::vector<std::string> files;
+  std::vector<rig::Seconds> times;
+  for (size_t j = 0; j < b.size(); ++j) {
+    files.push_back((dir / fmt::format("{}.jpg", j)).string());
+    cv::imwrite(files.back(), b[j].image, {cv::IMWRITE_JPEG_QUALITY, 95});
+    times.push_back(b[j].exposure);
+  }
+  auto dec1 = Time(std::max(1, args.repeat / 2), [&] { (void)*rig::DecodeFrames(files, times, 1); });
+  auto decn = Time(std::max(1, args.repeat / 2),
+                   [&] { (void)*rig::DecodeFrames(files, times, args.threads); });
+  auto cv_dec = Time(std::max(1, args.repeat / 2), [&] {
+    for (const auto& f : files) (void)cv::imread(f, cv::IMREAD_COLOR);
+  });
+  std::printf("\nDECODE %d JPEG q95 frames             ours(1 thr) ours(%d thr) cv::imread loop\n",
+              args.frames, args.threads);
+  std::printf("seconds (best)                       %8.3f    %8.3f    %8.3f\n", dec1.first,
+              decn.first, cv_dec.first);
+
+  std::printf("\nEXR WRITE (R,G,B,flags; ZIP)         1 thread  %d threads   cv::imwrite\n",
+              args.threads);
+  for (auto type : {rig::ExrPixelType::kHalf, rig::ExrPixelType::kFloat}) {
+    const std::string out = (dir / "map.exr").string();
+    auto w1 = Time(2, [&] { (void)rig::WriteRadianceMap(out, map, type, 1).ok(); });
+    auto wn = Time(2, [&] { (void)rig::WriteRadianceMap(out, map, type, args.threads).ok(); });
+    auto cvw = Time(2, [&] {
+      cv::imwrite(out, map.radiance,
+                  {cv::IMWRITE_EXR_TYPE, type == rig::ExrPixelType::kHalf
+                                             ? cv::IMWRITE_EXR_TYPE_HALF
+                                             : cv::IMWRITE_EXR_TYPE_FLOAT});
+    });
+    std::printf("%-36s %8.3f  %8.3f    %8.3f  s (%.1f MB)\n",
+                type == rig::ExrPixelType::kHalf ? "half" : "float", w1.first, wn.first,
+                cvw.first, fs::file_size(out) / 1e6);
+  }
+  fs::remove_all(dir);
+
+  if (args.sweep) {
+    std::printf("\nSWEEP (synthetic bracket): max |g - g_true| over 13..242 / log-radiance RMS\n");
+    std::printf("%-10s", "lambda");
+    const int sample_counts[] = {50, 100, 300, 1000, 3000};
+    for (int s : sample_counts) std::printf("   samples=%-5d", s);
+    std::printf("\n");
+    for (double lambda : {0.3, 1.0, 3.0, 10.0, 30.0, 100.0, 1000.0}) {
+      for (bool grid : {false, true}) {
+        std::printf("%-6g%-4s", lambda, grid ? "grid" : "");
+        for (int s : sample_counts) {
+          rig::ResponseOptions o = ro;
+          o.lambda = lambda;
+          o.samples = s;
+          o.grid_sampling = grid;
+          auto r = rig::RecoverResponse(brackets, o);
+          if (!r.ok()) {
+            std::printf("   %-14s", "failed");
+            continue;
+          }
+          rig::MergeOptions m;
+          m.threads = args.threads;
+          m.max_unrecorded_fraction = 1.0;
+          auto mm = rig::MergeBracket(b, *r, m);
+          const double ge = rig::synth::MaxResponseError(
+              [&](int c, int z) { return r->log_exposure[c][z]; }, film, 13, 242);
+          std::printf("   %.4f/%.4f  ", ge, rig::synth::LogRmsError(mm->radiance, truth, b));
+        }
+        std::printf("\n");
+      }
+    }
+  }
+  return 0;
+}

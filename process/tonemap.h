@@ -1,0 +1,129 @@
+// Tone mapping of radiance maps for a screen: Ward Larson, Rushmeier & Piatko 1997 histogram
+// adjustment with the linear ceiling (the paper's §4.2), a linear/clipped mapping, and three
+// of OpenCV's operators (Reinhard, Drago, Mantiuk) for comparison. See docs/tonemap.md.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "config/result.h"
+
+namespace rig {
+
+enum class ToneMapMethod { kWard, kLinear, kReinhard, kDrago, kMantiuk };
+
+// "ward", "linear", "reinhard", "drago", "mantiuk".
+const char* ToneMapMethodName(ToneMapMethod method);
+Result<ToneMapMethod> ParseToneMapMethod(const std::string& name);
+
+struct ToneMapOptions {
+  ToneMapMethod method = ToneMapMethod::kWard;
+  double field_of_view_deg = 40;    // horizontal; sets the ~1° foveal sample size
+  double display_min_cd_m2 = 1, display_max_cd_m2 = 100;
+  double ceiling_tolerance = 0.025; // stop trimming when what is trimmed falls under this fraction of T
+  int bins = 100;
+  double gamma = 2.2;               // display encoding: pixel = value^(1/gamma) ...
+  bool srgb = false;                // ... or the sRGB transfer curve when true
+  // Linear method: pixel = radiance * linear_scale before encoding, clipped at 1. 0: automatic,
+  // the `linear_percentile` of pixel luminance maps to white.
+  double linear_scale = 0;
+  double linear_percentile = 99;
+};
+
+struct ToneMapReport {
+  bool linear_fallback = false;  // Ward: a linear mapping was used (the range fits the display,
+                                 // or trimming emptied the histogram)
+  int trim_iterations = 0;       // Ward: passes of the ceiling procedure
+  double scene_log_range = 0;    // ln(max / min) of the foveal samples (Ward), else of the pixels
+  int foveal_width = 0, foveal_height = 0;  // Ward: size of the foveal sample image
+  double linear_scale = 0;       // the scale used by a linear mapping (Ward fallback or kLinear)
+  double clipped_low_fraction = 0, clipped_high_fraction = 0;  // pixels at 0 / at 255 (any channel)
+};
+
+// radiance: CV_32FC3 BGR linear (any scale). Returns CV_8UC3 BGR for a screen (display gamma
+// or sRGB applied). Errors: empty image, wrong type, bad options (kInvalidInput), OpenCV
+// failures (kInternal). Uses cv::parallel_for_ over rows.
+Result<cv::Mat> ToneMap(const cv::Mat& radiance, const ToneMapOptions& o,
+                        ToneMapReport* report = nullptr);
+
+// The same up to the display encoding: CV_32FC3 BGR linear pixel values ("before gamma"),
+// nominally in [0, 1]; values above 1 are clipped only by the encoding. For kWard and kLinear
+// every pixel's RGB is its radiance times one factor (colour ratios kept).
+Result<cv::Mat> ToneMapLinearPixels(const cv::Mat& radiance, const ToneMapOptions& o,
+                                    ToneMapReport* report = nullptr);
+
+// Encodes linear pixel values (CV_32FC3, clipped to [0, 1]) to CV_8UC3 with the options' gamma
+// or sRGB curve, through a lookup table; fills the clipped fractions of `report` if given.
+cv::Mat EncodeForDisplay(const cv::Mat& linear_pixels, const ToneMapOptions& o,
+                         ToneMapReport* report = nullptr);
+
+// Horizontal field of view of a lens on a sensor: 2·atan(sensor_width / (2·focal_length)).
+double FieldOfViewDeg(double focal_length_mm, double sensor_width_mm);
+
+// Rec. 709 luminance of a CV_32FC3 BGR image, CV_32FC1.
+cv::Mat Luminance(const cv::Mat& bgr);
+
+// Ward's foveal samples: the luminance averaged (linearly, as the eye integrates light) over
+// blocks of about 1° of visual angle, pixels per degree = width / field_of_view_deg. At least
+// 2 samples each way. CV_32FC1.
+cv::Mat FovealLuminance(const cv::Mat& luminance, double field_of_view_deg);
+
+// ---- Ward's histogram adjustment, exposed for tests -------------------------------------
+// All logarithms are natural: b = ln(L_w), B_d = ln(L_d).
+
+struct WardHistogram {
+  double log_min = 0, log_max = 0;  // range of b over the samples
+  double bin_width = 0;             // Δb = (log_max - log_min) / bins
+  std::vector<double> counts;       // f(b_i), bin i covers [log_min + iΔb, log_min + (i+1)Δb)
+  double original_total = 0;        // T before any trimming
+  double Total() const;             // T = Σ f(b_i) now
+  int bins() const { return static_cast<int>(counts.size()); }
+};
+
+// Histogram of ln(L) over the samples that are positive and finite (others are ignored).
+// An empty or one-valued sample set gives log_min == log_max and all counts in bin 0.
+WardHistogram BuildLogHistogram(const std::vector<float>& luminance_samples, int bins);
+
+// The linear ceiling of eq. 11 for the histogram's current total:
+// T · Δb / (ln L_dmax − ln L_dmin).
+double CeilingValue(const WardHistogram& h, double display_log_range);
+
+struct CeilingOutcome {
+  bool converged = false;  // false: the histogram emptied (total fell under tolerance·T)
+  int iterations = 0;
+  double last_trimmed = 0;  // counts removed by the last pass
+};
+
+// Ward's procedure: repeatedly clip every bin to the ceiling of the current total until a
+// pass trims no more than tolerance · original_total, or the total itself falls under it.
+CeilingOutcome ApplyLinearCeiling(WardHistogram* h, double display_log_range, double tolerance);
+
+// P at the bin edges: bins + 1 values, P[0] = 0, P[bins] = 1, P[k] = Σ_{i<k} f(b_i) / T.
+std::vector<double> CumulativeDistribution(const WardHistogram& h);
+
+// The scene-to-display luminance mapping Ward's operator settled on.
+struct WardMapping {
+  bool linear = false;
+  double linear_scale = 0;  // linear: L_d = linear_scale · L_w
+  double log_min = 0, log_max = 0;
+  std::vector<double> cumulative;  // CumulativeDistribution of the trimmed histogram
+  double display_min_cd_m2 = 1, display_max_cd_m2 = 100;
+
+  // B_d = ln L_dmin + (ln L_dmax − ln L_dmin) · P(b), P interpolated linearly in a bin; b
+  // below/above the histogram clamps to the display's ends. Linear: ln(linear_scale · L_w).
+  double DisplayLogLuminance(double world_luminance) const;
+  double DisplayLuminance(double world_luminance) const;
+  // Pixel luminance before gamma: histogram mapping (L_d − L_dmin) / (L_dmax − L_dmin);
+  // linear mapping L_d / L_dmax (ratios kept exactly, as Radiance's pcond does). 0 for L_w ≤ 0.
+  double PixelLuminance(double world_luminance) const;
+};
+
+// Builds the mapping from foveal luminance samples: histogram, linear fallback when the
+// samples' log range fits the display's (then the log-average maps to the display's
+// geometric middle), ceiling, cumulative. Fills the Ward fields of `report` if given.
+WardMapping ComputeWardMapping(const std::vector<float>& foveal_samples,
+                               const ToneMapOptions& o, ToneMapReport* report = nullptr);
+
+}  // namespace rig

@@ -1,0 +1,62 @@
+// rig capture: run an acquisition session (on the rig, or simulated with --dry-run).
+#include <cstdio>
+
+#include "config/log.h"
+#include "rig/backends.h"
+#include "rig/commands/command.h"
+#include "rig/commands/session_run.h"
+#include "rig/signals.h"
+
+namespace rig {
+
+int RunCapture(int argc, char** argv) {
+  CLI::App app{"Acquire a session: home, then at every lamp pose move, settle, lamp on, capture "
+               "the exposure bracket, lamp off; every frame stored and journaled at once; "
+               "brackets merged into radiance maps while the rig moves on; the reflectance "
+               "model fitted at the end.",
+               "rig capture"};
+  std::string config_path, out;
+  bool dry_run = false, no_process = false, no_progress = false;
+  std::string level;
+  app.add_option("--config", config_path, "session configuration (TOML)")->required();
+  app.add_option("--out", out, "session folder to create (refused if it holds a session)")->required();
+  app.add_flag("--dry-run", dry_run, "simulate every device (camera, motor, lamp), whatever the config says");
+  app.add_flag("--no-process", no_process, "store frames only; process later with 'rig process'");
+  app.add_flag("--no-progress", no_progress, "no progress bar");
+  AddLogLevelOption(app, &level);
+  if (auto rc = ParseCommandLine(app, argc, argv)) return *rc;
+  if (auto rc = ApplyLogLevel(level)) return *rc;
+
+  ConfigResult cr = LoadConfig(config_path);
+  if (!cr.ok()) {
+    for (const auto& d : cr.diagnostics) std::fprintf(stderr, "%s\n", d.ToString().c_str());
+    return 2;
+  }
+  Config config = cr.config;
+  if (dry_run) UseSimulatedBackends(&config);
+  auto session = Session::Create(out, config);
+  if (!session.ok()) return ReportError("capture", session.error());
+  InstallStopHandlers();
+  return RunSession(*session, /*resuming=*/false, !no_process, !no_progress);
+}
+
+int RunResume(int argc, char** argv) {
+  CLI::App app{"Continue an interrupted or faulted session where its journal says: verifies "
+               "every stored frame (size and CRC), redoes only what is missing or damaged.",
+               "rig resume"};
+  std::string dir, level;
+  bool no_process = false, no_progress = false;
+  app.add_option("SESSION", dir, "session folder")->required();
+  app.add_flag("--no-process", no_process, "store frames only");
+  app.add_flag("--no-progress", no_progress, "no progress bar");
+  AddLogLevelOption(app, &level);
+  if (auto rc = ParseCommandLine(app, argc, argv)) return *rc;
+  if (auto rc = ApplyLogLevel(level)) return *rc;
+  auto session = Session::OpenExisting(dir);
+  if (!session.ok()) return ReportError("resume", session.error());
+  for (const auto& w : session->history().warnings) Log("session")->warn("{}", w);
+  InstallStopHandlers();
+  return RunSession(*session, /*resuming=*/true, !no_process, !no_progress);
+}
+
+}  // namespace rig

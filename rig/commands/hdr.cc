@@ -1,0 +1,113 @@
+// rig hdr --list LIST --out FILE.exr: merges one exposure bracket into a radiance map (EXR).
+#include <chrono>
+#include <cstdio>
+
+#include "config/log.h"
+#include "process/hdr.h"
+#include "process/image_io.h"
+#include "rig/commands/command.h"
+
+namespace rig {
+
+int RunHdr(int argc, char** argv) {
+  CLI::App app{"Merge one exposure bracket into a float radiance map (OpenEXR).\n"
+               "LIST holds one '<image> <exposure_s>' per line (exposures increasing, '#' "
+               "comments; relative paths are relative to the LIST's folder).",
+               "rig hdr"};
+  std::string list, out, response_in, response_out, pixel_type = "float", log_level;
+  std::vector<std::string> attributes;
+  bool linear = false;
+  ResponseOptions ro;
+  MergeOptions mo;
+  int threads = 2;
+  app.add_option("--list", list, "bracket list file")->required();
+  app.add_option("--out", out, "output radiance map (.exr)")->required();
+  app.add_option("--response", response_in,
+                 "use this stored response curve (CSV from --save-response) instead of "
+                 "recovering one");
+  app.add_option("--save-response", response_out, "write the response curve used (CSV)");
+  app.add_flag("--linear", linear, "the frames are linear (decoded RAW): no response recovery");
+  app.add_option("--lambda", ro.lambda, "smoothness of the recovered response (relative)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--samples", ro.samples, "sample patches for response recovery")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--threads", threads, "threads for decoding, merging and writing")
+      ->check(CLI::Range(1, 64));
+  app.add_option("--pixel-type", pixel_type, "EXR pixel type")
+      ->check(CLI::IsMember({"half", "float"}));
+  app.add_option("--max-unrecorded", mo.max_unrecorded_fraction,
+                 "largest fraction of pixels saturated (or black) in every exposure before the "
+                 "bracket is rejected as too short (1: never)")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--attribute", attributes, "extra EXR header attribute KEY=VALUE (repeatable)");
+  AddLogLevelOption(app, &log_level);
+  if (auto rc = ParseCommandLine(app, argc, argv)) return *rc;
+  if (auto rc = ApplyLogLevel(log_level)) return *rc;
+  if (linear && !response_in.empty()) {
+    std::fprintf(stderr, "rig hdr: --linear and --response exclude each other\n");
+    return 2;
+  }
+  std::map<std::string, std::string> extra;
+  for (const auto& a : attributes) {
+    const size_t eq = a.find('=');
+    if (eq == std::string::npos || eq == 0) {
+      std::fprintf(stderr, "rig hdr: --attribute '%s' is not KEY=VALUE\n", a.c_str());
+      return 2;
+    }
+    extra[a.substr(0, eq)] = a.substr(eq + 1);
+  }
+  ro.threads = mo.threads = threads;
+  using Clock = std::chrono::steady_clock;
+  auto since = [](Clock::time_point t) {
+    return std::chrono::duration<double>(Clock::now() - t).count();
+  };
+
+  auto t0 = Clock::now();
+  auto frames = LoadBracketList(list, threads);
+  if (!frames.ok()) return ReportError("hdr", frames.error());
+  if (auto s = ValidateBracket(*frames); !s.ok()) return ReportError("hdr", s.error().Within(list));
+  const double decode_s = since(t0);
+  const int levels = frames->front().image.depth() == CV_16U ? 65536 : 256;
+
+  t0 = Clock::now();
+  ResponseCurve response;
+  if (linear) {
+    response = LinearResponse(levels);
+  } else if (!response_in.empty()) {
+    auto r = LoadResponse(response_in);
+    if (!r.ok()) return ReportError("hdr", r.error());
+    response = std::move(r).value();
+  } else {
+    const Bracket brackets[1] = {*frames};
+    auto r = RecoverResponse(brackets, ro);
+    if (!r.ok()) return ReportError("hdr", r.error().Within(list));
+    response = std::move(r).value();
+  }
+  const double response_s = since(t0);
+  if (!response_out.empty()) {
+    if (auto s = SaveResponse(response, response_out); !s.ok()) return ReportError("hdr", s.error());
+  }
+
+  t0 = Clock::now();
+  auto map = MergeBracket(*frames, response, mo);
+  if (!map.ok()) return ReportError("hdr", map.error());
+  const double merge_s = since(t0);
+  for (const auto& [k, v] : extra) map->attributes[k] = v;
+
+  t0 = Clock::now();
+  auto type = ParseExrPixelType(pixel_type);
+  if (auto s = WriteRadianceMap(out, *map, *type, threads); !s.ok()) {
+    return ReportError("hdr", s.error());
+  }
+  const double write_s = since(t0);
+  const double pixels = double(map->radiance.total());
+  std::printf("%s: %dx%d from %zu frames, response %s; saturated %d (%.2f%%), black %d (%.2f%%); "
+              "decode %.3f s, response %.3f s, merge %.3f s, write %.3f s\n",
+              out.c_str(), map->radiance.cols, map->radiance.rows, frames->size(),
+              response.id.c_str(), map->saturated_pixels, 100.0 * map->saturated_pixels / pixels,
+              map->black_pixels, 100.0 * map->black_pixels / pixels, decode_s, response_s,
+              merge_s, write_s);
+  return 0;
+}
+
+}  // namespace rig

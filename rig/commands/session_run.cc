@@ -1,0 +1,130 @@
+// Running a session end to end: devices, ground truth, capture daemon, model, summary.
+#include "rig/commands/session_run.h"
+
+#include <cstdio>
+
+#include "config/log.h"
+#include "rig/backends.h"
+#include "rig/commands/command.h"
+#include "rig/daemon.h"
+#include "rig/signals.h"
+
+namespace rig {
+
+int RunSession(Session& session, bool resuming, bool process, bool progress) {
+  auto log = Log("session");
+  const Config& config = session.config();
+  auto devices = MakeDevices(config);
+  if (!devices.ok()) return ReportError(resuming ? "resume" : "capture", devices.error());
+  const SessionLayout& layout = session.layout();
+  if (devices->write_truth && !fs::exists(layout.truth() / "scene.json")) {
+    Status st = devices->write_truth(layout.truth(), PlanGrid(config.grid));
+    if (!st.ok()) return ReportError("capture", st.error().Within("truth"));
+  }
+  CaptureOptions options;
+  options.settle_scale = devices->settle_scale;
+  options.process = process;
+  options.progress = progress;
+  CaptureDaemon daemon(session, *devices->camera, *devices->motor, *devices->lamp, options);
+  CaptureSummary summary;
+  Status st = daemon.Run(&summary);
+  std::printf("%s\n", summary.ToString().c_str());
+  if (!st.ok()) {
+    if (st.error().code == ErrorCode::kInterrupted) return 128 + StopSignal();
+    ReportError(resuming ? "resume" : "capture", st.error());
+    std::fprintf(stderr, "rig: nothing captured is lost; fix the device and run 'rig resume %s'\n",
+                 layout.root.string().c_str());
+    return st.error().code == ErrorCode::kInvalidInput ? 2 : 1;
+  }
+  int rc = summary.processing.failed.empty() ? 0 : 1;
+  if (process && rc == 0) {
+    Status fit = FitSessionModel(session);
+    if (!fit.ok()) {
+      ReportError("process", fit.error());
+      rc = 1;
+    }
+  }
+  std::printf("session %s: %s\n", layout.root.string().c_str(), rc == 0 ? "complete" : "captured; processing failed");
+  return rc;
+}
+
+}  // namespace rig
+
+#include "process/model_stream.h"
+
+namespace rig {
+
+Status FitSessionModel(const Session& session) {
+  auto log = Log("process");
+  const Config& config = session.config();
+  const SessionLayout& layout = session.layout();
+  StreamFitInput in;
+  std::vector<double> h, v;
+  for (const Pose& p : PlanGrid(config.grid)) {
+    fs::path path = layout.Hdr(p.Name());
+    if (!fs::exists(path)) {
+      log->warn("pose={} has no radiance map; the model is fitted without it", p.Name());
+      continue;
+    }
+    in.paths.push_back(path.string());
+    in.directions.push_back(LightDirection(p.h_deg, p.v_deg, config.light_frame));
+    h.push_back(p.h_deg);
+    v.push_back(p.v_deg);
+  }
+  if (in.paths.size() < 2)
+    return MakeError(ErrorCode::kInvalidInput, layout.hdr().string(),
+                     "{} radiance map(s): too few to fit a model", in.paths.size());
+  in.weights = GridQuadratureWeights(h, v);
+  in.light_frame = config.light_frame;
+  in.lamp_radiance_rgb = config.lamp.radiance_rgb;
+  const auto& patch = config.process.reference_patch_px;
+  if (patch[2] > 0 && patch[3] > 0) {
+    // Lamp radiance from the reference patch: only the patch of each map is kept in memory.
+    std::vector<cv::Mat> crops;
+    for (const auto& p : in.paths) {
+      RIG_ASSIGN_OR_RETURN(cv::Mat m, ReadRgbExr(p));
+      cv::Rect r(patch[0], patch[1], patch[2], patch[3]);
+      if ((r & cv::Rect(0, 0, m.cols, m.rows)) != r)
+        return MakeError(ErrorCode::kInvalidInput, "process.reference_patch_px",
+                         "the patch {}x{}+{}+{} is outside the {}x{} image", r.width, r.height,
+                         r.x, r.y, m.cols, m.rows);
+      crops.push_back(m(r).clone());
+    }
+    RIG_ASSIGN_OR_RETURN(in.lamp_radiance_rgb,
+                         CalibrateLampRadiance(crops, {0, 0, patch[2], patch[3]},
+                                               config.process.reference_reflectance));
+    log->info("lamp radiance from the reference patch: R={:.4g} G={:.4g} B={:.4g}",
+              in.lamp_radiance_rgb[0], in.lamp_radiance_rgb[1], in.lamp_radiance_rgb[2]);
+  }
+  RIG_ASSIGN_OR_RETURN(FitOptions options, FitOptionsFromConfig(config.process));
+  options.threads = config.process.threads;
+  ExrPixelType type = config.process.model_pixel_type == "float" ? ExrPixelType::kFloat : ExrPixelType::kHalf;
+  std::error_code ec;
+  fs::create_directories(layout.model(), ec);
+  fs::path out = layout.model() / "model.exr";
+  RIG_ASSIGN_OR_RETURN(StreamFitOutput fit, FitModelStreaming(in, options, out.string(), type));
+  // What each order costs and gives, beside the model.
+  std::string md = fmt::format(
+      "# Reflectance model of {}\n\nbasis {}, method {}, fit space {}; chosen order {} "
+      "({} terms); LOO RMS error {:.5g}; fitted in {:.2f} s\n\n"
+      "| order | terms | supported | LOO RMS error | condition | λ (relative) |\n"
+      "|---|---|---|---|---|---|\n",
+      layout.root.string(), config.process.basis, config.process.fit_method, config.process.fit_space,
+      fit.selection.order, fit.selection.projector.basis.size(), fit.loo_rmse, fit.time_s);
+  for (const auto& o : fit.selection.orders) {
+    md += o.supported ? fmt::format("| {} | {} | yes | {:.5g} | {:.3g} | {:.3g} |\n", o.order, o.terms,
+                                    o.loo_rmse, o.condition, o.lambda_relative)
+                      : fmt::format("| {} | {} | no: {} | | | |\n", o.order, o.terms, o.refusal);
+  }
+  md += fmt::format("\npixels with missing samples: {}, flagged: {}\n", fit.missing.pixels_with_missing,
+                    fit.missing.flagged);
+  Status st = WriteFileAtomic(layout.model() / "report.md", md);
+  if (!st.ok()) log->warn("{}", st.error().ToString());
+  log->info("model written file={} order={} terms={} loo_rmse={:.5g} time_s={:.2f}", out.string(),
+            fit.selection.order, fit.selection.projector.basis.size(), fit.loo_rmse, fit.time_s);
+  std::printf("model: %s (order %d, %d terms, LOO RMS error %.4g, %.2f s)\n", out.string().c_str(),
+              fit.selection.order, fit.selection.projector.basis.size(), fit.loo_rmse, fit.time_s);
+  return Ok();
+}
+
+}  // namespace rig

@@ -1,0 +1,150 @@
+// Tests of process/exr_io: round trips (half, float), attributes, errors naming the file.
+#include "process/exr_io.h"
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+namespace rig {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path TempDir() {
+  fs::path d = fs::temp_directory_path() /
+               ("rig_exr_io_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+                "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+  fs::create_directories(d);
+  return d;
+}
+
+cv::Mat TestImage(int w, int h) {
+  cv::Mat img(h, w, CV_32FC3);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      // Values over several decades, as a radiance map has.
+      img.at<cv::Vec3f>(y, x) = cv::Vec3f(0.001f * (1 + x), 0.5f + y, 1000.0f / (1 + x + y));
+    }
+  }
+  return img;
+}
+
+TEST(ExrIo, FloatRoundTripIsExactAndKeepsAttributes) {
+  fs::path dir = TempDir();
+  cv::Mat img = TestImage(37, 21);
+  std::map<std::string, std::string> attrs = {{"pose", "h030_v10"},
+                                              {"exposures_s", "0.01 0.1 1"}};
+  std::string path = (dir / "a.exr").string();
+  ASSERT_TRUE(WriteRgbExr(path, img, attrs, ExrPixelType::kFloat, 2).ok());
+  std::map<std::string, std::string> read_attrs;
+  auto r = ReadRgbExr(path, &read_attrs, 2);
+  ASSERT_TRUE(r.ok()) << r.error().ToString();
+  EXPECT_EQ(cv::norm(*r, img, cv::NORM_INF), 0.0);
+  EXPECT_EQ(read_attrs, attrs);
+  // No temporary file is left beside the result.
+  int files = 0;
+  for (auto& e : fs::directory_iterator(dir)) files += e.is_regular_file();
+  EXPECT_EQ(files, 1);
+  fs::remove_all(dir);
+}
+
+TEST(ExrIo, HalfRoundTripWithinHalfPrecision) {
+  fs::path dir = TempDir();
+  cv::Mat img = TestImage(16, 9);
+  std::string path = (dir / "h.exr").string();
+  auto w = WriteRgbExr(path, img, {{"k", "v"}}, ExrPixelType::kHalf, 1);
+  ASSERT_TRUE(w.ok()) << w.error().ToString();
+  auto r = ReadRgbExr(path);
+  ASSERT_TRUE(r.ok()) << r.error().ToString();
+  cv::Mat rel;
+  cv::divide(cv::abs(*r - img), img, rel);
+  double max_rel = 0;
+  cv::minMaxLoc(rel.reshape(1), nullptr, &max_rel);
+  EXPECT_GT(max_rel, 0.0);       // it really was stored as half
+  EXPECT_LT(max_rel, 1.0 / 1024);  // 10-bit mantissa
+  fs::remove_all(dir);
+}
+
+TEST(ExrIo, GenericChannelsKeepNamesAndValues) {
+  fs::path dir = TempDir();
+  ExrImage img;
+  img.width = 5;
+  img.height = 3;
+  for (int i = 0; i < 3; ++i) {
+    img.channel_names.push_back("c0" + std::to_string(i) + ".R");
+    img.channels.push_back(cv::Mat(3, 5, CV_32FC1, cv::Scalar(i * 1.5 - 1)));
+  }
+  img.channel_names.push_back("flags");
+  img.channels.push_back(cv::Mat(3, 5, CV_32FC1, cv::Scalar(2)));
+  std::string path = (dir / "g.exr").string();
+  ASSERT_TRUE(WriteExr(path, img).ok());
+  auto r = ReadExr(path);
+  ASSERT_TRUE(r.ok()) << r.error().ToString();
+  ASSERT_EQ(r->channel_names.size(), 4u);
+  for (size_t i = 0; i < 4; ++i) {
+    // Channels come back sorted by name (EXR's order); find each by name.
+    size_t j = std::find(r->channel_names.begin(), r->channel_names.end(), img.channel_names[i]) -
+               r->channel_names.begin();
+    ASSERT_LT(j, 4u);
+    EXPECT_EQ(cv::norm(r->channels[j], img.channels[i], cv::NORM_INF), 0.0);
+  }
+  fs::remove_all(dir);
+}
+
+TEST(ExrIo, MissingFileErrorNamesFile) {
+  auto r = ReadExr("/nonexistent/dir/x.exr");
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.error().code, ErrorCode::kNotFound);
+  EXPECT_NE(r.error().ToString().find("/nonexistent/dir/x.exr"), std::string::npos);
+}
+
+TEST(ExrIo, TruncatedFileErrorNamesFile) {
+  fs::path dir = TempDir();
+  std::string path = (dir / "t.exr").string();
+  ASSERT_TRUE(WriteRgbExr(path, TestImage(64, 64)).ok());
+  fs::resize_file(path, fs::file_size(path) / 2);
+  auto r = ReadRgbExr(path);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().ToString().find(path), std::string::npos);
+  std::ofstream(dir / "junk.exr") << "not an exr file";
+  auto j = ReadExr((dir / "junk.exr").string());
+  ASSERT_FALSE(j.ok());
+  EXPECT_NE(j.error().ToString().find("junk.exr"), std::string::npos);
+  fs::remove_all(dir);
+}
+
+TEST(ExrIo, WriteIntoMissingFolderFailsNamingFile) {
+  auto s = WriteRgbExr("/nonexistent/dir/out.exr", TestImage(4, 4));
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().ToString().find("/nonexistent/dir/out.exr"), std::string::npos);
+}
+
+TEST(ExrIo, RejectsWrongChannelType) {
+  ExrImage img;
+  img.width = 2;
+  img.height = 2;
+  img.channel_names = {"Y"};
+  img.channels = {cv::Mat(2, 2, CV_8UC1, cv::Scalar(1))};
+  auto s = WriteExr("/tmp/never_written.exr", img);
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.error().code, ErrorCode::kInvalidInput);
+}
+
+TEST(ExrIo, ReadsSharedDeskExr) {
+  const char* shared = std::getenv("RIG_SHARED_DIR");
+  fs::path p = fs::path(shared ? shared : "/work/shared") / "data/hdr/Desk.exr";
+  if (!fs::exists(p)) GTEST_SKIP() << p << " not present";
+  auto r = ReadRgbExr(p.string());
+  ASSERT_TRUE(r.ok()) << r.error().ToString();
+  EXPECT_GT(r->cols, 100);
+  EXPECT_GT(r->rows, 100);
+  double mn, mx;
+  cv::minMaxLoc(r->reshape(1), &mn, &mx);
+  EXPECT_GT(mn, -1.0);  // the file holds a few small negative values
+  EXPECT_GT(mx, 1.0);
+}
+
+}  // namespace
+}  // namespace rig
