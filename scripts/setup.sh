@@ -12,6 +12,7 @@ packages=(
   libopencv-videoio-dev libopenexr-dev libeigen3-dev libopenblas-dev
   # infrastructure
   libspdlog-dev libfmt-dev libtomlplusplus-dev libcli11-dev nlohmann-json3-dev
+  zlib1g-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
 )
