@@ -55,7 +55,7 @@ struct Scene {
   }
 };
 
-Scene MakeScene(int seed) {
+Scene MakeScene(int seed, double gloss_scale = 1.0) {
   Scene s;
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(0, 1);
@@ -64,7 +64,7 @@ Scene MakeScene(int seed) {
     Vec3 n{std::sin(a) * std::cos(6 * b), std::sin(a) * std::sin(6 * b), std::cos(a)};
     s.normal.push_back(n);
     s.albedo.push_back(0.2 + 0.6 * u(rng));
-    s.gloss.push_back(0.4 * u(rng));
+    s.gloss.push_back(0.4 * gloss_scale * u(rng));
     s.exponent.push_back(4 + 12 * u(rng));
   }
   return s;
@@ -118,7 +118,7 @@ Result<FitOutput> Fit(const Grid& g, const std::vector<cv::Mat>& maps, FitMethod
   return FitModel(in, o);
 }
 
-TEST(FitConditioning, ConditionNumberOfTheGridGrowsSteeplyWithOrder) {
+TEST(FitConditioning, ConditionNumberOfTheGridGrowsSteeplyWithOrderThenTheGridIsRankDeficient) {
   const Grid g = RigGrid();
   std::vector<double> cond;
   for (int order = 0; order <= 5; ++order) {
@@ -130,8 +130,13 @@ TEST(FitConditioning, ConditionNumberOfTheGridGrowsSteeplyWithOrder) {
                 pr->condition);
   }
   EXPECT_NEAR(cond[0], 1.0, 1e-12);
-  for (size_t i = 1; i < cond.size(); ++i) EXPECT_GT(cond[i], 3 * cond[i - 1]);
-  EXPECT_GT(cond[4], 1e4);  // a 90°x30° patch cannot tell order-4 harmonics apart well
+  for (size_t i = 1; i <= 3; ++i) EXPECT_GT(cond[i], 3 * cond[i - 1]);
+  // The grid's 40 directions lie on 4 circles of constant y = sin v. The degree-4 polynomial
+  // (y - sin 0)(y - sin 10)(y - sin 20)(y - sin 30) vanishes on every one of them, so from
+  // order 4 on the SH design matrix has a null space: no amount of data on this grid tells
+  // those harmonics apart, and an unregularised fit must refuse (see FitRefusals).
+  EXPECT_GT(cond[4], 1e12);
+  EXPECT_GT(cond[5], 1e12);
 }
 
 TEST(FitIdentifiability, LowOrderShCombinationIsRecoveredExactlyByLeastSquares) {
@@ -180,30 +185,34 @@ TEST(FitMethods, RegularisedLeastSquaresBeatsThePapersQuadratureByAWideMargin) {
   EXPECT_LT(rls_best * 10, quad_best);
 }
 
-TEST(FitOrderSelection, ChoosesTheSmallestOrderWithinTolerance) {
+int ExpectedSmallestWithinTolerance(const FitOutput& fit, double tolerance) {
+  double best = 1e9;
+  for (const auto& r : fit.selection.orders)
+    if (r.supported) best = std::min(best, r.loo_rmse);
+  for (const auto& r : fit.selection.orders)
+    if (r.supported && r.loo_rmse <= best * (1 + tolerance)) return r.order;
+  return -1;
+}
+
+TEST(FitOrderSelection, ChoosesTheSmallestOrderWithinToleranceOfTheBest) {
   const Grid g = RigGrid();
-  const Scene s = MakeScene(5);
-  const auto maps = Render(s, g.dirs, 0.002);
+  const auto maps = Render(MakeScene(5), g.dirs, 0.002);
   auto fit = Fit(g, maps, FitMethod::kRls, -1);
   ASSERT_TRUE(fit.ok()) << fit.error().ToString();
-  const auto& orders = fit->selection.orders;
-  double best = 1e9;
-  for (const auto& r : orders)
-    if (r.supported) best = std::min(best, r.loo_rmse);
-  int expected = -1;
-  for (const auto& r : orders) {
-    if (r.supported && r.loo_rmse <= best * 1.02) {
-      expected = r.order;
-      break;
-    }
-  }
-  EXPECT_EQ(fit->selection.order, expected);
-  // A choice was made: the best order is not the largest one or the chosen one is smaller.
-  const auto& chosen = orders[fit->selection.order];
-  EXPECT_LE(chosen.loo_rmse, best * 1.02);
-  std::printf("chosen order %d (LOO %.5f), best LOO %.5f\n", fit->selection.order,
-              chosen.loo_rmse, best);
-  EXPECT_LT(fit->selection.order, 6);
+  EXPECT_EQ(fit->selection.order, ExpectedSmallestWithinTolerance(*fit, 0.02));
+}
+
+TEST(FitOrderSelection, AMatteSceneGetsOrderOneAndAGlossyOneMore) {
+  // A Lambertian patch lit from its front hemisphere: rho = albedo * N.L is linear in L, so
+  // order 1 holds all of it; anything more fits the noise. Gloss needs more.
+  const Grid g = RigGrid();
+  auto matte = Fit(g, Render(MakeScene(5, 0.0), g.dirs, 0.002), FitMethod::kRls, -1);
+  auto glossy = Fit(g, Render(MakeScene(5, 1.0), g.dirs, 0.002), FitMethod::kRls, -1);
+  ASSERT_TRUE(matte.ok() && glossy.ok());
+  std::printf("chosen order: matte %d, glossy %d\n", matte->selection.order,
+              glossy->selection.order);
+  EXPECT_EQ(matte->selection.order, 1);
+  EXPECT_GT(glossy->selection.order, matte->selection.order);
 }
 
 TEST(FitRefusals, UnsupportedOrdersAreRefusedNotFittedToGarbage) {
