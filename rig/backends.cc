@@ -92,6 +92,21 @@ Error NotBuilt(const std::string& what, const char* library) {
 
 }  // namespace
 
+std::vector<std::string> BuiltBackends() {
+  std::vector<std::string> b = {"sim-camera", "sim-motor", "sim-lamp"};
+#if RIG_HAVE_GPHOTO2_BACKEND
+  b.push_back("gphoto2-camera");
+#endif
+#if RIG_HAVE_SERIAL_BACKEND
+  b.push_back("grbl-motor");
+  b.push_back("maestro-motor");
+#endif
+#if RIG_HAVE_GPIOD_BACKEND
+  b.push_back("gpiod-lamp");
+#endif
+  return b;
+}
+
 void UseSimulatedBackends(Config* config) {
   config->camera.backend = "sim";
   config->motor.backend = "sim";

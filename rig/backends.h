@@ -32,6 +32,9 @@ struct Devices {
 // Builds the devices of `config`; an unknown or not-built backend is a clear error.
 Result<Devices> MakeDevices(const Config& config);
 
+// The backends this build contains, e.g. "sim-camera", "gphoto2-camera" (rig --version).
+std::vector<std::string> BuiltBackends();
+
 // Makes every backend the simulated one (what `--dry-run` does).
 void UseSimulatedBackends(Config* config);
 

@@ -4,6 +4,7 @@
 #include <string>
 
 #include "build_info.h"
+#include "rig/backends.h"
 #include "rig/commands/command.h"
 
 namespace {
@@ -32,7 +33,9 @@ int main(int argc, char** argv) {
     return 0;
   }
   if (cmd == "--version" || cmd == "version") {
-    std::printf("rig %s\nbackends: %s\n", RIG_VERSION, RIG_BACKENDS);
+    std::string backends;
+    for (const auto& b : rig::BuiltBackends()) backends += (backends.empty() ? "" : " ") + b;
+    std::printf("rig %s\nbackends: %s\n", RIG_VERSION, backends.c_str());
     return 0;
   }
   for (const auto& c : rig::Commands()) {
