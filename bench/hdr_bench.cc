@@ -18,7 +18,7 @@
 #include "process/exr_io.h"
 #include "process/hdr.h"
 #include "process/image_io.h"
-#include "tests/support/hdr_synth.h"
+#include "sim/bracket_synth.h"
 
 namespace {
 

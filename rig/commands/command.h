@@ -44,5 +44,6 @@ int RunRender(int argc, char** argv);
 int RunTonemap(int argc, char** argv);
 int RunHdr(int argc, char** argv);
 int RunRatioCheck(int argc, char** argv);
+int RunEvaluate(int argc, char** argv);
 
 }  // namespace rig

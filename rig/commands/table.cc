@@ -13,6 +13,7 @@ const std::vector<Command>& Commands() {
       {"ratio-check", "the paper's Fig. 6: pixel ratios from intensity vs radiance", RunRatioCheck},
       {"fit", "fit a reflectance model to radiance maps or an RTI capture", RunFit},
       {"render", "relight a reflectance model with lamps", RunRender},
+      {"evaluate", "speed against accuracy of every method: tables, charts, stability report", RunEvaluate},
       {"tonemap", "tone-map an HDR image (.exr, .hdr) for a screen", RunTonemap},
   };
   return kCommands;

@@ -1,6 +1,7 @@
-// Synthetic HDR test data with known truth: radiance images, a filmic per-channel camera
-// response, and brackets rendered through it with seeded noise (header-only: tests and
-// bench/hdr_bench.cc both use it).
+// Synthetic brackets with known truth: radiance images, a filmic per-channel camera response,
+// and brackets rendered through it from any radiance map (e.g. a real HDR image) with seeded
+// noise; error measures against the truth. Header-only: used by bench/hdr_bench.cc, the
+// tests and `rig evaluate`.
 #pragma once
 
 #include <algorithm>
