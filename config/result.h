@@ -50,7 +50,12 @@ struct Error {
   }
   // Exit status a command returns for this error: 2 for bad input, 1 otherwise.
   int ExitCode() const {
-    return (code == ErrorCode::kInvalidInput || code == ErrorCode::kNotFound) ? 2 : 1;
+    // Bad input — a wrong value, a missing or damaged file given to us — is 2; a failure of
+    // the work (a device, a write) is 1.
+    return (code == ErrorCode::kInvalidInput || code == ErrorCode::kNotFound ||
+            code == ErrorCode::kCorrupt)
+               ? 2
+               : 1;
   }
 };
 

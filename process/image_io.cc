@@ -105,6 +105,10 @@ void ParallelFor(int n, int threads, const std::function<void(int, int)>& fn, in
 
 Result<cv::Mat> DecodeImage(const std::string& path) {
   RIG_ASSIGN_OR_RETURN(std::vector<uchar> bytes, ReadAll(path));
+  return DecodeImageBytes(bytes, path);
+}
+
+Result<cv::Mat> DecodeImageBytes(const std::vector<uchar>& bytes, const std::string& path) {
   const bool jpeg = bytes.size() >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF;
   const bool png = bytes.size() >= 8 && std::memcmp(bytes.data(), "\x89PNG\r\n\x1a\n", 8) == 0;
   // libjpeg decodes a truncated file with a warning and grey rows at the bottom; libpng may

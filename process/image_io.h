@@ -25,6 +25,8 @@ using Bracket = std::vector<LdrFrame>;
 // Unreadable, unsupported and truncated files (a JPEG without its end marker, a PNG without
 // IEND) are errors naming the file.
 Result<cv::Mat> DecodeImage(const std::string& path);
+// The same from the file's bytes already in memory; `path` names it in errors.
+Result<cv::Mat> DecodeImageBytes(const std::vector<uchar>& bytes, const std::string& path);
 
 // Decodes files[i] into frame i, `threads` files at a time. The first error (in file order)
 // is returned; it names the file.

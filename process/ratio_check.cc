@@ -15,22 +15,46 @@ int LevelAt(const cv::Mat& img, cv::Point p, int c) {
   return img.at<cv::Vec3b>(p)[c];
 }
 
-// Radiance of pixel p from frame f alone; false if a channel is black or clipped there.
-bool FrameRadiance(const LdrFrame& f, const ResponseCurve& g, cv::Point p, double* out) {
+// Radiance around pixel p (the mean over a (2r+1)² patch) from frame f alone; false unless
+// every level there is well recorded (5% .. 95% of the range: quantisation and the curve's
+// ends make the rest unreliable in a single frame).
+bool FrameRadiance(const LdrFrame& f, const ResponseCurve& g, cv::Point p, double* out, int r = 0) {
+  const int lo = static_cast<int>(0.05 * (g.levels - 1)), hi = static_cast<int>(0.95 * (g.levels - 1));
   double sum = 0;
-  for (int c = 0; c < 3; ++c) {
-    const int z = LevelAt(f.image, p, c);
-    if (z <= 0 || z >= g.levels - 1) return false;
-    sum += std::exp(g.log_exposure[c][z] - std::log(f.exposure.count()));
-  }
-  *out = sum / 3;
+  int n = 0;
+  for (int dy = -r; dy <= r; ++dy)
+    for (int dx = -r; dx <= r; ++dx) {
+      const cv::Point q = p + cv::Point(dx, dy);
+      if (q.x < 0 || q.y < 0 || q.x >= f.image.cols || q.y >= f.image.rows) continue;
+      for (int c = 0; c < 3; ++c) {
+        const int z = LevelAt(f.image, q, c);
+        if (z < lo || z > hi) return false;
+        sum += std::exp(g.log_exposure[c][z] - std::log(f.exposure.count()));
+        ++n;
+      }
+    }
+  if (n == 0) return false;
+  *out = sum / n;
   return true;
 }
 
-int RecordedFrames(std::span<const LdrFrame> frames, const ResponseCurve& g, cv::Point p) {
+// Mean level over the patch, all channels.
+double PatchIntensity(const cv::Mat& img, cv::Point p, int r) {
+  double sum = 0;
+  int n = 0;
+  for (int dy = -r; dy <= r; ++dy)
+    for (int dx = -r; dx <= r; ++dx) {
+      const cv::Point q = p + cv::Point(dx, dy);
+      if (q.x < 0 || q.y < 0 || q.x >= img.cols || q.y >= img.rows) continue;
+      for (int c = 0; c < 3; ++c) sum += LevelAt(img, q, c), ++n;
+    }
+  return n ? sum / n : 0;
+}
+
+int RecordedFrames(std::span<const LdrFrame> frames, const ResponseCurve& g, cv::Point p, int r) {
   int n = 0;
   double v;
-  for (const auto& f : frames) n += FrameRadiance(f, g, p, &v);
+  for (const auto& f : frames) n += FrameRadiance(f, g, p, &v, r);
   return n;
 }
 
@@ -74,19 +98,26 @@ Result<RatioCheckResult> CheckPixelRatios(std::span<const LdrFrame> frames,
     };
     std::vector<Cand> cands;
     const int min_recorded = std::max(2, int(frames.size()) / 3);
+    const int m = o.patch_radius + 1;  // margin: the patch and its flatness probes fit
     for (int i = 0; i < 4000 && cands.size() < 400; ++i) {
-      cv::Point p(1 + int(rng() % uint64_t(std::max(1, bounds.width - 2))),
-                  1 + int(rng() % uint64_t(std::max(1, bounds.height - 2))));
+      cv::Point p(m + int(rng() % uint64_t(std::max(1, bounds.width - 2 * m))),
+                  m + int(rng() % uint64_t(std::max(1, bounds.height - 2 * m))));
+      if (!bounds.contains(p)) continue;
       if (map.flags.at<uint8_t>(p) != kFlagOk) continue;
       const cv::Vec3f e = map.radiance.at<cv::Vec3f>(p);
       const float lum = (e[0] + e[1] + e[2]) / 3;
       if (!(lum > 0)) continue;
       bool flat = true;
-      for (cv::Point d : {cv::Point(1, 0), cv::Point(0, 1)}) {
+      const int k = std::max(1, o.patch_radius);
+      for (cv::Point d : {cv::Point(k, 0), cv::Point(0, k), cv::Point(-k, 0), cv::Point(0, -k)}) {
+        if (!bounds.contains(p + d)) {
+          flat = false;
+          break;
+        }
         const cv::Vec3f n = map.radiance.at<cv::Vec3f>(p + d);
         flat = flat && std::abs((n[0] + n[1] + n[2]) / 3 - lum) < 0.05f * lum;
       }
-      if (!flat || RecordedFrames(frames, response, p) < min_recorded) continue;
+      if (!flat || RecordedFrames(frames, response, p, o.patch_radius) < min_recorded) continue;
       cands.push_back({p, lum});
     }
     if (cands.size() < 2) {
@@ -97,17 +128,20 @@ Result<RatioCheckResult> CheckPixelRatios(std::span<const LdrFrame> frames,
     r.a = cands[cands.size() * 3 / 4].p;
     r.b = cands[cands.size() / 4].p;
   }
-  const cv::Vec3f ea = map.radiance.at<cv::Vec3f>(r.a), eb = map.radiance.at<cv::Vec3f>(r.b);
-  const double la = (ea[0] + ea[1] + ea[2]) / 3, lb = (eb[0] + eb[1] + eb[2]) / 3;
+  auto patch_mean = [&](cv::Point p) {
+    const cv::Rect patch = cv::Rect(p.x - o.patch_radius, p.y - o.patch_radius, 2 * o.patch_radius + 1,
+                                    2 * o.patch_radius + 1) & bounds;
+    const cv::Scalar m = cv::mean(map.radiance(patch));
+    return (m[0] + m[1] + m[2]) / 3;
+  };
+  const double la = patch_mean(r.a), lb = patch_mean(r.b);
   r.merged_ratio = lb > 0 ? la / lb : 0;
   double imin = 1e300, imax = 0, rmin = 1e300, rmax = 0;
   for (const auto& f : frames) {
     RatioRow row;
     row.exposure_s = f.exposure.count();
-    for (int c = 0; c < 3; ++c) {
-      row.intensity_a += LevelAt(f.image, r.a, c) / 3.0;
-      row.intensity_b += LevelAt(f.image, r.b, c) / 3.0;
-    }
+    row.intensity_a = PatchIntensity(f.image, r.a, o.patch_radius);
+    row.intensity_b = PatchIntensity(f.image, r.b, o.patch_radius);
     if (row.intensity_b > 0) {
       row.intensity_ratio = row.intensity_a / row.intensity_b;
       if (row.intensity_a > 0) {
@@ -116,7 +150,8 @@ Result<RatioCheckResult> CheckPixelRatios(std::span<const LdrFrame> frames,
       }
     }
     double ra = 0, rb = 0;
-    if (FrameRadiance(f, response, r.a, &ra) && FrameRadiance(f, response, r.b, &rb) && rb > 0) {
+    if (FrameRadiance(f, response, r.a, &ra, o.patch_radius) &&
+        FrameRadiance(f, response, r.b, &rb, o.patch_radius) && rb > 0) {
       row.radiance_valid = true;
       row.radiance_ratio = ra / rb;
       rmin = std::min(rmin, row.radiance_ratio);

@@ -19,10 +19,13 @@ struct RatioCheckOptions {
   // frames, with radiances near the 25th and 75th percentiles of the image.
   std::optional<cv::Point> a, b;
   uint64_t seed = 1;
+  // Each "pixel" is the mean of a (2r+1)² patch around it (0: the single pixel, as in the
+  // paper); a frame's radiance counts only where every level of the patch is well recorded.
+  int patch_radius = 2;
 };
 
-// One exposure of the bracket. Intensity: the mean of the three 8/16-bit levels. Radiance:
-// the mean over channels of exp(g(z) - ln t) from this one frame alone.
+// One exposure of the bracket. Intensity: the mean of the 8/16-bit levels (three channels,
+// the patch). Radiance: the mean of exp(g(z) - ln t) from this one frame alone.
 struct RatioRow {
   double exposure_s = 0;
   double intensity_a = 0, intensity_b = 0;

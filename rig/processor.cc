@@ -6,6 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "config/log.h"
+#include "process/image_io.h"
 
 namespace rig {
 namespace {
@@ -48,7 +49,7 @@ Result<std::vector<BracketJob>> CompleteBrackets(const Session& session) {
     const auto& f = frames[pose];
     if (f.size() != plan_exposures.size()) continue;
     RIG_ASSIGN_OR_RETURN(Pose p, ParsePoseName(pose));
-    BracketJob job{p, {}, {}, {}};
+    BracketJob job{p, {}, {}, {}, {}};
     bool ok = true;
     for (const auto& [index, rec] : f) {
       fs::path file = session.layout().root / rec.at("file").get<std::string>();
@@ -58,6 +59,7 @@ Result<std::vector<BracketJob>> CompleteBrackets(const Session& session) {
       }
       job.files.push_back(file);
       job.exposures_s.push_back(rec.at("exposure_s").get<double>());
+      job.journaled.push_back({rec.value("bytes", uint64_t{0}), rec.value("crc32", uint32_t{0})});
     }
     if (ok) jobs.push_back(std::move(job));
   }
@@ -76,22 +78,33 @@ Result<Bracket> HdrStage::Decode(BracketJob& job) {
   // Decode on every configured thread: JPEG decoding dominates small-frame processing.
   cv::parallel_for_(cv::Range(0, static_cast<int>(job.files.size())), [&](const cv::Range& r) {
     for (int i = r.start; i < r.end; ++i) {
-      cv::Mat img;
-      try {
-        if (static_cast<size_t>(i) < job.bytes.size() && !job.bytes[i].empty()) {
-          img = cv::imdecode(job.bytes[i], cv::IMREAD_ANYDEPTH | cv::IMREAD_COLOR);
-        } else {
-          img = cv::imread(job.files[i].string(), cv::IMREAD_ANYDEPTH | cv::IMREAD_COLOR);
+      const std::string name = job.files[i].string();
+      std::vector<uint8_t> read;
+      const bool in_memory = static_cast<size_t>(i) < job.bytes.size() && !job.bytes[i].empty();
+      if (!in_memory) {
+        auto bytes = ReadFileBytes(job.files[i]);
+        if (!bytes.ok()) {
+          errors[i] = bytes.error();
+          continue;
         }
-      } catch (const cv::Exception& e) {
-        errors[i] = MakeError(ErrorCode::kCorrupt, job.files[i].string(), "cannot decode: {}", e.what());
+        read = std::move(bytes).value();
+        if (static_cast<size_t>(i) < job.journaled.size() && job.journaled[i].first > 0) {
+          const auto [size, crc] = job.journaled[i];
+          if (read.size() != size || Crc32(read) != crc) {
+            errors[i] = MakeError(ErrorCode::kCorrupt, name,
+                                  "damaged since capture: {} bytes, CRC-32 {:08x}; the journal "
+                                  "recorded {} bytes, CRC-32 {:08x}",
+                                  read.size(), Crc32(read), size, crc);
+            continue;
+          }
+        }
+      }
+      auto decoded = DecodeImageBytes(in_memory ? job.bytes[i] : read, name);
+      if (!decoded.ok()) {
+        errors[i] = decoded.error();
         continue;
       }
-      if (img.empty()) {
-        errors[i] = MakeError(ErrorCode::kCorrupt, job.files[i].string(),
-                              "cannot decode the image (unreadable or truncated)");
-        continue;
-      }
+      cv::Mat img = std::move(decoded).value();
       bracket[i] = LdrFrame{img, Seconds(job.exposures_s[i]), job.files[i].string()};
     }
   });

@@ -29,6 +29,9 @@ struct BracketJob {
   Pose pose;
   std::vector<fs::path> files;          // absolute paths, in exposure order
   std::vector<double> exposures_s;      // applied exposures, ascending
+  // Size and CRC-32 of each file as journaled when it was stored (empty: not known); a file
+  // that no longer matches is refused as damaged, never merged.
+  std::vector<std::pair<uint64_t, uint32_t>> journaled;
   // The bytes as captured, when at hand (saves reading them back); else read from files.
   std::vector<std::vector<uint8_t>> bytes;
 };
