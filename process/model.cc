@@ -59,26 +59,50 @@ double SampleSpacingDeg(const std::vector<Vec3>& dirs) {
 }
 
 cv::Mat Model::EvaluateRho(const Vec3& direction) const {
-  std::vector<double> b = basis_.Eval(direction);
-  cv::Mat sum = cv::Mat::zeros(height_, width_, CV_32FC3);
-  for (int k = 0; k < basis_.size(); ++k) {
-    cv::scaleAdd(coefficients_[k], b[k], sum, sum);
-  }
-  RIG_CHECK(sum.isContinuous(), "");
-  info_.transform.InverseInPlace(sum.ptr<float>(), sum.total() * 3);
-  if (!valid_.empty()) sum.setTo(cv::Scalar::all(0), valid_ == 0);
+  const std::vector<double> b = basis_.Eval(direction);
+  std::vector<float> w(b.begin(), b.end());
+  cv::Mat sum(height_, width_, CV_32FC3);
+  const int terms = basis_.size();
+  const size_t row_values = static_cast<size_t>(width_) * 3;
+  // Row by row: the row being summed stays in cache while every coefficient plane streams
+  // through once, so evaluation costs about one read of the coefficients.
+  cv::parallel_for_(cv::Range(0, height_), [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      float* out = sum.ptr<float>(y);
+      const float* c0 = coefficients_[0].ptr<float>(y);
+      const float w0 = w[0];
+      for (size_t i = 0; i < row_values; ++i) out[i] = w0 * c0[i];
+      for (int k = 1; k < terms; ++k) {
+        const float* ck = coefficients_[k].ptr<float>(y);
+        const float wk = w[k];
+        for (size_t i = 0; i < row_values; ++i) out[i] += wk * ck[i];
+      }
+      info_.transform.InverseInPlace(out, row_values);
+      if (!valid_.empty()) {
+        const uint8_t* v = valid_.ptr<uint8_t>(y);
+        for (int x = 0; x < width_; ++x)
+          if (!v[x]) out[3 * x] = out[3 * x + 1] = out[3 * x + 2] = 0;
+      }
+    }
+  });
   return sum;
 }
 
 void Model::AddLamp(const Vec3& direction, const std::array<double, 3>& rgb_scale,
                     cv::Mat* sum) const {
-  cv::Mat rho = EvaluateRho(direction);
+  const cv::Mat rho = EvaluateRho(direction);
   const auto& e = info_.lamp_radiance_rgb;
-  const cv::Scalar gain(e[2] * rgb_scale[2], e[1] * rgb_scale[1], e[0] * rgb_scale[0]);
+  const float gain[3] = {static_cast<float>(e[2] * rgb_scale[2]), static_cast<float>(e[1] * rgb_scale[1]),
+                         static_cast<float>(e[0] * rgb_scale[0])};  // B, G, R
   if (sum->empty()) *sum = cv::Mat::zeros(height_, width_, CV_32FC3);
-  cv::Mat lit;
-  cv::multiply(rho, gain, lit);
-  *sum += lit;
+  cv::parallel_for_(cv::Range(0, height_), [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      const float* r = rho.ptr<float>(y);
+      float* out = sum->ptr<float>(y);
+      for (int x = 0; x < width_; ++x)
+        for (int c = 0; c < 3; ++c) out[3 * x + c] += gain[c] * r[3 * x + c];
+    }
+  });
 }
 
 RegionCheck Model::CheckRegion(const Vec3& direction) const {
