@@ -281,7 +281,7 @@ Status GrblMotor::Queue(const std::string& line) {
   return Ok();
 }
 
-Result<GrblMotor::Line> GrblMotor::AwaitResponse(Seconds timeout, OnAlarm on_alarm) {
+Result<GrblMotor::Line> GrblMotor::AwaitResponse(Seconds timeout, OnAlarm on_alarm, bool interruptible) {
   RIG_CHECK(!outstanding_.empty(), "no line awaits a reply");
   auto deadline = After(timeout);
   for (;;) {
@@ -290,7 +290,7 @@ Result<GrblMotor::Line> GrblMotor::AwaitResponse(Seconds timeout, OnAlarm on_ala
     if (left.count() <= 0)
       return Fail(ErrorCode::kTimeout,
                   fmt::format("no reply to '{}' within {:.2f} s", waiting_for, timeout.count()));
-    auto next = NextLine(left);
+    auto next = NextLine(left, interruptible);
     if (!next.ok()) {
       if (next.error().code == ErrorCode::kTimeout)
         return Fail(ErrorCode::kTimeout,
@@ -617,11 +617,12 @@ Status GrblMotor::StopMotion(bool unlock) {
   outstanding_.clear();
   if (unlock) {
     // A reset during a hold raises ALARM:3 although the controlled deceleration kept
-    // every step: the position is still good, so unlock.
+    // every step: the position is still good, so unlock. (Not interruptible: this is how
+    // a Ctrl-C leaves the arm.)
     auto s = QueryStatus(false);
     if (s.ok() && s->state == "Alarm") {
       RIG_TRY(Queue("$X"));
-      RIG_ASSIGN_OR_RETURN(Line r, AwaitResponse(Seconds(config_.reply_timeout_s), OnAlarm::kRecord));
+      RIG_ASSIGN_OR_RETURN(Line r, AwaitResponse(Seconds(config_.reply_timeout_s), OnAlarm::kRecord, false));
       (void)r;
     }
   }

@@ -78,7 +78,7 @@ class GrblMotor final : public Motor {
   Status Queue(const std::string& line);
   // Waits for the ok/error of the oldest outstanding line. error:N is returned as a
   // Line (kind kError), not as an Error.
-  Result<Line> AwaitResponse(Seconds timeout, OnAlarm on_alarm);
+  Result<Line> AwaitResponse(Seconds timeout, OnAlarm on_alarm, bool interruptible = true);
   Result<GrblStatus> QueryStatus(bool interruptible = true);
   Status ReadSettings();
   Status DoHome();
