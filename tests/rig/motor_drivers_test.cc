@@ -8,7 +8,13 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "config/config.h"
+#include "rig/backends.h"
+#include "rig/daemon.h"
 #include "rig/grbl_motor.h"
+#include "rig/pose.h"
+#include "rig/session_store.h"
+#include "tests/support/run_rig.h"
 #include "rig/maestro_motor.h"
 #include "rig/signals.h"
 #include "sim/grbl_emulator.h"
@@ -83,6 +89,26 @@ TEST(GrblMotor, HomesMovesAndReadsBackThePositionInDegrees) {
   EXPECT_NEAR(where->h_deg, 30, 0.01);
   EXPECT_NEAR(where->v_deg, 10, 0.01);
   motor.Close();
+}
+
+TEST(GrblMotor, VisitsEveryGridPoseAndIsIdleThereEachTime) {
+  auto emu = StartGrbl(FastGrbl());
+  ASSERT_TRUE(emu);
+  GrblMotor motor(GrblConfigFor(emu->path()));
+  ASSERT_TRUE(motor.Open().ok());
+  ASSERT_TRUE(motor.Home().ok());
+  GridConfig grid;  // h 0..90, v 0..30, 10-degree steps
+  const auto poses = PlanGrid(grid);
+  ASSERT_EQ(poses.size(), 40u);
+  for (const Pose& p : poses) {
+    Status st = motor.MoveTo(p);
+    ASSERT_TRUE(st.ok()) << st.error().ToString();
+    ASSERT_EQ(emu->State(), "Idle") << p.Name();
+    EXPECT_NEAR(std::abs(emu->Position()[0]), p.h_deg, 0.01) << p.Name();
+    EXPECT_NEAR(std::abs(emu->Position()[1]), p.v_deg, 0.01) << p.Name();
+  }
+  // Every move took the time its trapezoid says (the emulator is not short-cutting).
+  EXPECT_GE(emu->motion_times_s().size(), 39u);
 }
 
 TEST(GrblMotor, CompletionByPollingStatusUntilIdle) {
@@ -264,6 +290,36 @@ TEST(GrblMotor, CtrlCDuringALongMoveReturnsPromptly) {
   EXPECT_EQ(emu->State(), "Idle");
   EXPECT_LT(std::abs(emu->Position()[0]), 45);
   EXPECT_LT(took, 3.0);
+}
+
+TEST(GrblMotor, ADryRunWithTheGrblEmulatorAsTheMotorCompletes) {
+  // The simulated camera and lamp, the real GRBL driver on the emulator's pty.
+  auto emu = StartGrbl(FastGrbl());
+  ASSERT_TRUE(emu);
+  ConfigResult cr = LoadConfig(testing::SourceDir() + "/config/sim.toml");
+  ASSERT_TRUE(cr.ok());
+  Config config = cr.config;
+  config.sim.width = 64;
+  config.sim.height = 48;
+  config.bracket.count = 3;
+  config.motor = GrblConfigFor(emu->path());
+  const std::string dir = testing::FreshTempDir("grbl_dry_run");
+  auto session = Session::Create(dir + "/S", config);
+  ASSERT_TRUE(session.ok()) << session.error().ToString();
+  auto devices = MakeDevices(config);
+  ASSERT_TRUE(devices.ok()) << devices.error().ToString();
+  CaptureOptions options;
+  options.settle_scale = 0;
+  options.progress = false;
+  CaptureDaemon daemon(*session, *devices->camera, *devices->motor, *devices->lamp, options);
+  CaptureSummary summary;
+  Status st = daemon.Run(&summary);
+  ASSERT_TRUE(st.ok()) << st.error().ToString();
+  EXPECT_EQ(summary.frames_captured, 40 * 3);
+  EXPECT_EQ(summary.processing.merged, 40);
+  EXPECT_EQ(emu->homings(), 1);
+  EXPECT_GE(emu->moves(), 40);
+  std::filesystem::remove_all(dir);
 }
 
 // ---- Maestro ------------------------------------------------------------------------------
