@@ -7,16 +7,16 @@
 #include "sim/sim_motor.h"
 #include "sim/truth.h"
 #include "sim/world.h"
-#if RIG_WITH_GPHOTO2 && __has_include("capture/gphoto2_camera.h")
+#if RIG_WITH_GPHOTO2
 #define RIG_HAVE_GPHOTO2_BACKEND 1
 #include "capture/gphoto2_camera.h"
 #endif
-#if RIG_WITH_SERIALPORT && __has_include("rig/maestro_motor.h")
+#if RIG_WITH_SERIALPORT
 #define RIG_HAVE_SERIAL_BACKEND 1
 #include "rig/grbl_motor.h"
 #include "rig/maestro_motor.h"
 #endif
-#if RIG_WITH_GPIOD && __has_include("rig/gpiod_lamp.h")
+#if RIG_WITH_GPIOD
 #define RIG_HAVE_GPIOD_BACKEND 1
 #include "rig/gpiod_lamp.h"
 #endif

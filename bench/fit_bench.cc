@@ -1,0 +1,150 @@
+// The reflectance fit's speed and memory. (1) Throughput of applying the fit (coefficients =
+// P · samples, every pixel at once) beside a plain BLAS-style GEMM of the same shape (Eigen,
+// float, same threads), in the same run. (2) The streamed fit of a whole session of radiance
+// EXRs at 1, 6 (and with --max-mp 24, 24) megapixels x 40 poses: time and the peak resident
+// memory of the process that fits (a forked child, so the data generation is not counted).
+//
+//   build/bench/fit_bench [--max-mp 6] [--dir /tmp]
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "config/log.h"
+#include "process/exr_io.h"
+#include "process/fit.h"
+#include "process/model_stream.h"
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+double Seconds(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+template <typename Fn>
+double Median(int repeat, Fn&& fn) {
+  std::vector<double> t;
+  for (int i = 0; i < repeat; ++i) {
+    const auto a = Clock::now();
+    fn();
+    t.push_back(Seconds(a));
+  }
+  std::sort(t.begin(), t.end());
+  return t[t.size() / 2];
+}
+
+std::vector<rig::Vec3> GridDirections(std::vector<double>* h, std::vector<double>* v) {
+  std::vector<rig::Vec3> d;
+  for (int vv = 0; vv <= 30; vv += 10)
+    for (int hh = 0; hh <= 90; hh += 10) {
+      d.push_back(rig::LightDirection(hh, vv));
+      h->push_back(hh);
+      v->push_back(vv);
+    }
+  return d;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int max_mp = 6;
+  std::string dir = fs::temp_directory_path().string();
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string k = argv[i];
+    if (k == "--max-mp") max_mp = std::atoi(argv[i + 1]);
+    if (k == "--dir") dir = argv[i + 1];
+  }
+  rig::SetLogLevel("warn");
+  std::vector<double> hs, vs;
+  const auto dirs = GridDirections(&hs, &vs);
+  const auto weights = rig::GridQuadratureWeights(hs, vs);
+  const int poses = static_cast<int>(dirs.size());
+
+  // ---- (1) applying the fit against a GEMM of the same shape ----
+  {
+    const int order = 3;
+    const rig::Basis basis(rig::BasisKind::kSh, order);
+    auto pr = rig::BuildProjector(basis, dirs, weights, rig::FitMethod::kRls, 1e-4, 1e12);
+    if (!pr.ok()) return 1;
+    const Eigen::Index cols = 1'000'000 * 3;  // 1 MP x 3 channels
+    rig::SampleMatrix samples(poses, cols), coefficients;
+    samples.setRandom();
+    std::vector<uint8_t> missing, valid;
+    const double ours = Median(5, [&] {
+      rig::ApplyProjector(*pr, dirs, weights, 1e12, samples, missing, &coefficients, &valid);
+    });
+    Eigen::MatrixXf p = pr->p.cast<float>();
+    rig::SampleMatrix out(basis.size(), cols);
+    const double gemm = Median(5, [&] { out.noalias() = p * samples; });
+    const double flops = 2.0 * basis.size() * poses * cols;
+    std::printf("applying the fit: %d terms x %d poses x 1 MP x 3 channels (float, %d Eigen threads)\n",
+                basis.size(), poses, Eigen::nbThreads());
+    std::printf("  %-36s %8.1f ms  %6.2f GFLOP/s\n", "peer: GEMM of the same shape", gemm * 1e3, flops / gemm / 1e9);
+    std::printf("  %-36s %8.1f ms  %6.2f GFLOP/s  (%.2fx the GEMM)\n", "ours: ApplyProjector", ours * 1e3,
+                flops / ours / 1e9, ours / gemm);
+  }
+
+  // ---- (2) streamed fits of whole sessions ----
+  std::printf("\nstreamed fit of a 40-pose session of half-float radiance EXRs (order auto, rls)\n");
+  std::printf("  %-10s %12s %12s %14s %14s\n", "size", "input GB", "fit s", "peak RSS MB", "in-memory GB");
+  for (int mp : {1, 6, 24}) {
+    if (mp > max_mp) break;
+    const int width = mp == 1 ? 1200 : mp == 6 ? 3000 : 6000;
+    const int height = mp == 1 ? 834 : mp == 6 ? 2000 : 4000;
+    const fs::path folder = fs::path(dir) / ("rig_fit_bench_" + std::to_string(mp) + "mp_" + std::to_string(getpid()));
+    fs::create_directories(folder);
+    std::vector<std::string> paths;
+    double bytes = 0;
+    // Smooth radiance varying with the lamp: a Lambertian-like field, cheap to generate.
+    cv::Mat nx(height, width, CV_32F), ny(height, width, CV_32F);
+    cv::randu(nx, -0.4, 0.4);
+    cv::randu(ny, -0.4, 0.4);
+    for (int i = 0; i < poses; ++i) {
+      cv::Mat r = 0.5f + nx * static_cast<float>(dirs[i][0]) + ny * static_cast<float>(dirs[i][1]);
+      cv::Mat rgb;
+      cv::merge(std::vector<cv::Mat>{r, r * 0.9f, r * 0.8f}, rgb);
+      const std::string p = (folder / ("pose" + std::to_string(i) + ".exr")).string();
+      if (!rig::WriteRgbExr(p, rgb, {}, rig::ExrPixelType::kHalf).ok()) return 1;
+      paths.push_back(p);
+      bytes += static_cast<double>(fs::file_size(p));
+    }
+    const double in_memory = double(width) * height * 3 * 4 * poses / 1e9;
+    const pid_t child = fork();
+    if (child == 0) {
+      rig::StreamFitInput in;
+      in.paths = paths;
+      in.directions = dirs;
+      in.weights = weights;
+      rig::FitOptions o;
+      o.threads = 2;
+      const auto t0 = Clock::now();
+      auto out = rig::FitModelStreaming(in, o, (folder / "model.exr").string(), rig::ExrPixelType::kHalf);
+      if (!out.ok()) {
+        std::fprintf(stderr, "%s\n", out.error().ToString().c_str());
+        _exit(1);
+      }
+      std::printf("  %-10s %12.2f %12.2f", (std::to_string(mp) + " MP").c_str(), bytes / 1e9, Seconds(t0));
+      std::fflush(stdout);
+      _exit(0);
+    }
+    int status = 0;
+    waitpid(child, &status, 0);
+    rusage usage{};
+    getrusage(RUSAGE_CHILDREN, &usage);  // the largest child so far: sizes grow, so this one
+    std::printf(" %14.0f %14.2f\n", usage.ru_maxrss / 1024.0, in_memory);
+    fs::remove_all(folder);
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) return 1;
+  }
+  return 0;
+}
