@@ -101,6 +101,10 @@ class GPhoto2Camera final : public Camera {
   Status Open() override {
     Close();
     context_ = gp_context_new();
+    // Per-call timeout: libgphoto2 asks the context whether to cancel during long
+    // operations (transfers, waits); past the call's deadline the answer is yes.
+    gp_context_set_cancel_func(context_, &GPhoto2Camera::CancelIfLate, this);
+    Arm();
     // Which body: as configured, else the first (or the one with the serial) detected.
     std::vector<std::pair<std::string, std::string>> bodies;  // model, port
     if (!config_.model.empty() && !config_.port.empty()) {
@@ -213,6 +217,10 @@ class GPhoto2Camera final : public Camera {
     ErrorCode code = ErrorCode::kDevice;
     if (rc == GP_ERROR_CAMERA_BUSY) code = ErrorCode::kBusy;
     if (rc == GP_ERROR_TIMEOUT) code = ErrorCode::kTimeout;
+    if (rc == GP_ERROR_CANCEL) {
+      code = ErrorCode::kTimeout;
+      msg += fmt::format(": no answer within camera.call_timeout_s = {} s", config_.call_timeout_s);
+    }
     if (rc == GP_ERROR_MODEL_NOT_FOUND || rc == GP_ERROR_IO_USB_FIND) code = ErrorCode::kNotFound;
     if (rc == GP_ERROR_IO_USB_CLAIM) {
       code = ErrorCode::kBusy;
@@ -268,8 +276,19 @@ class GPhoto2Camera final : public Camera {
     camera_ = nullptr;
   }
 
+  static GPContextFeedback CancelIfLate(GPContext*, void* data) {
+    return Clock::now() > static_cast<GPhoto2Camera*>(data)->call_deadline_ ? GP_CONTEXT_FEEDBACK_CANCEL
+                                                                            : GP_CONTEXT_FEEDBACK_OK;
+  }
+  // Starts the clock of one camera call (camera.call_timeout_s).
+  void Arm() {
+    call_deadline_ = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                        std::chrono::duration<double>(config_.call_timeout_s));
+  }
+
   Result<std::string> GetValue(const char* name) {
     if (!camera_) return MakeError(ErrorCode::kFault, Describe(), "not open");
+    Arm();
     CameraWidget* w = nullptr;
     int rc = gp_camera_get_single_config(camera_, name, &w, context_);
     if (rc < 0) return Failure(rc, fmt::format("reading '{}'", name));
@@ -284,6 +303,7 @@ class GPhoto2Camera final : public Camera {
   // Sets a value on a fresh widget each time (after a busy error an old widget is stale).
   Status SetValue(const char* name, const std::string& value) {
     if (!camera_) return MakeError(ErrorCode::kFault, Describe(), "not open");
+    Arm();
     CameraWidget* w = nullptr;
     int rc = gp_camera_get_single_config(camera_, name, &w, context_);
     if (rc < 0) return Failure(rc, fmt::format("reading '{}'", name));
@@ -325,6 +345,7 @@ class GPhoto2Camera final : public Camera {
                        speed.second, back);
     }
     CameraFilePath path;
+    Arm();
     int rc = gp_camera_capture(camera_, GP_CAPTURE_IMAGE, &path, context_);
     if (rc < 0) return Failure(rc, fmt::format("capturing at {}", speed.second));
     CapturedFrame frame;
@@ -363,6 +384,7 @@ class GPhoto2Camera final : public Camera {
   Result<CapturedFile> Download(const CameraFilePath& path) {
     CameraFile* file = nullptr;
     gp_file_new(&file);
+    Arm();
     int rc = gp_camera_file_get(camera_, path.folder, path.name, GP_FILE_TYPE_NORMAL, file, context_);
     if (rc < 0) {
       gp_file_unref(file);
@@ -390,6 +412,7 @@ class GPhoto2Camera final : public Camera {
   GPContext* context_ = nullptr;
   ::Camera* camera_ = nullptr;
   std::string model_, port_;
+  Clock::time_point call_deadline_{};
 };
 
 }  // namespace

@@ -83,7 +83,7 @@ class WorldTrackingLamp final : public Lamp {
   std::shared_ptr<SimWorld> world_;
 };
 
-Error NotBuilt(const std::string& what, const char* library) {
+[[maybe_unused]] Error NotBuilt(const std::string& what, const char* library) {
   return MakeError(ErrorCode::kUnsupported, what,
                    "this build of rig has no {} backend ({} was not found at build time; "
                    "'rig --version' lists the backends built in)",

@@ -1,9 +1,15 @@
 // GPhoto2Camera against a real libgphoto2 talking to its own virtual PTP camera (vusb),
 // built by scripts/build-vusb-camera.sh; run through scripts/with-vusb-camera.sh, which sets
 // the environment (tests/gphoto2.cmake does both as CTest fixture and wrapper).
+#include <dlfcn.h>
+#include <gphoto2/gphoto2-camera.h>
+#include <gphoto2/gphoto2-port-result.h>
+
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+
+#include <chrono>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -12,6 +18,34 @@
 #include "capture/gphoto2_camera.h"
 #include "rig/session_store.h"
 #include "tests/support/run_rig.h"
+
+// Failures the virtual camera cannot produce (busy, a claimed device, a vanished one) come
+// from a fake at the libgphoto2 boundary: these two calls fail as told, else forward to the
+// real library underneath.
+namespace fake {
+int busy_captures = 0;      // the next N captures answer GP_ERROR_CAMERA_BUSY
+int failing_captures = 0;   // the next N captures answer `capture_error`
+int capture_error = GP_ERROR_IO;
+bool claimed = false;       // gp_camera_init answers GP_ERROR_IO_USB_CLAIM
+int captures_seen = 0;
+}  // namespace fake
+
+extern "C" int gp_camera_capture(::Camera* camera, CameraCaptureType type, CameraFilePath* path,
+                                 GPContext* context) {
+  using Fn = int (*)(::Camera*, CameraCaptureType, CameraFilePath*, GPContext*);
+  static Fn real = reinterpret_cast<Fn>(dlsym(RTLD_NEXT, "gp_camera_capture"));
+  ++fake::captures_seen;
+  if (fake::busy_captures > 0) return --fake::busy_captures, GP_ERROR_CAMERA_BUSY;
+  if (fake::failing_captures > 0) return --fake::failing_captures, fake::capture_error;
+  return real(camera, type, path, context);
+}
+
+extern "C" int gp_camera_init(::Camera* camera, GPContext* context) {
+  using Fn = int (*)(::Camera*, GPContext*);
+  static Fn real = reinterpret_cast<Fn>(dlsym(RTLD_NEXT, "gp_camera_init"));
+  if (fake::claimed) return GP_ERROR_IO_USB_CLAIM;
+  return real(camera, context);
+}
 
 namespace rig {
 namespace {
@@ -124,6 +158,48 @@ count = 3
   for (const auto& rec : journal->records) frames += rec.value("event", "") == "frame";
   EXPECT_EQ(frames, 40 * 3);
   fs::remove_all(dir);
+}
+
+TEST_F(GPhoto2Camera, ABusyBodyIsRetriedWithBackOffThenGivesUpNamingTheError) {
+  auto cam = MakeGPhoto2Camera(VirtualBody());  // retries 2, back-off 0.05 s doubling
+  ASSERT_TRUE(cam->Open().ok());
+  fake::busy_captures = 2;
+  fake::captures_seen = 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  auto frame = cam->Capture(Seconds(0.01));
+  ASSERT_TRUE(frame.ok()) << frame.error().ToString();
+  EXPECT_EQ(fake::captures_seen, 3);
+  EXPECT_GE(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 0.15);
+  fake::busy_captures = 5;
+  frame = cam->Capture(Seconds(0.01));
+  fake::busy_captures = 0;
+  ASSERT_FALSE(frame.ok());
+  EXPECT_EQ(frame.error().code, ErrorCode::kBusy);
+  EXPECT_THAT(frame.error().ToString(), HasSubstr(gp_result_as_string(GP_ERROR_CAMERA_BUSY)));
+}
+
+TEST_F(GPhoto2Camera, AClaimedDeviceNamesTheUsualCulprit) {
+  fake::claimed = true;
+  Status st = MakeGPhoto2Camera(VirtualBody())->Open();
+  fake::claimed = false;
+  ASSERT_FALSE(st.ok());
+  EXPECT_THAT(st.error().ToString(), HasSubstr("another program holds the camera"));
+  EXPECT_THAT(st.error().ToString(), HasSubstr("gvfs"));
+}
+
+TEST_F(GPhoto2Camera, ABodyThatVanishesFailsTheCaptureAndWorksAgainAfterReopening) {
+  auto cam = MakeGPhoto2Camera(VirtualBody());
+  ASSERT_TRUE(cam->Open().ok());
+  fake::failing_captures = 1;
+  fake::capture_error = GP_ERROR_IO_USB_FIND;
+  auto frame = cam->Capture(Seconds(0.01));
+  ASSERT_FALSE(frame.ok());
+  EXPECT_THAT(frame.error().ToString(), HasSubstr(gp_result_as_string(GP_ERROR_IO_USB_FIND)));
+  // What the capture daemon does between retries: close, open again, capture.
+  cam->Close();
+  ASSERT_TRUE(cam->Open().ok());
+  frame = cam->Capture(Seconds(0.01));
+  ASSERT_TRUE(frame.ok()) << frame.error().ToString();
 }
 
 TEST(ShutterSpeedLabels, ParseByValueWhateverTheBodysNotation) {
