@@ -33,8 +33,12 @@ int RunProcess(int argc, char** argv) {
     std::error_code ec;
     fs::path r = session->layout().calib() / "response.csv";
     if (fs::exists(r)) {
-      // Never lose a result silently: the old curve is kept beside the new one.
-      fs::rename(r, session->layout().calib() / "response.previous.csv", ec);
+      // Never lose a result: the old curve is kept beside the new one, under a free name.
+      fs::path keep = session->layout().calib() / "response.previous.csv";
+      for (int i = 2; fs::exists(keep); ++i)
+        keep = session->layout().calib() / fmt::format("response.previous-{}.csv", i);
+      fs::rename(r, keep, ec);
+      if (ec) return ReportError("process", MakeError(ErrorCode::kIo, r.string(), "cannot keep the old response as {}: {}", keep.string(), ec.message()));
     }
     force = true;
   }
