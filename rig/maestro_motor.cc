@@ -178,13 +178,8 @@ Status MaestroMotor::Home() {
 
 Status MaestroMotor::MoveTo(const Pose& pose) {
   std::string where = "pose " + pose.Name();
-  if (pose.h_deg < config_.h_limit_min_deg || pose.h_deg > config_.h_limit_max_deg ||
-      pose.v_deg < config_.v_limit_min_deg || pose.v_deg > config_.v_limit_max_deg)
-    return Fail(ErrorCode::kInvalidInput,
-                fmt::format("h {} v {} deg is outside the soft limits h {}..{} v {}..{}", pose.h_deg,
-                            pose.v_deg, config_.h_limit_min_deg, config_.h_limit_max_deg,
-                            config_.v_limit_min_deg, config_.v_limit_max_deg))
-        .Within(where);
+  if (const std::string why = SoftLimitViolation(config_, pose); !why.empty())
+    return Fail(ErrorCode::kInvalidInput, why).Within(where);
   if (!port_) return Fail(ErrorCode::kFault, "not open").Within(where);
   if (!fault_.empty())
     return Fail(ErrorCode::kFault, "in fault state (" + fault_ + "): home or reconnect first").Within(where);

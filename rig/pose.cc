@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdlib>
 
+#include <fmt/format.h>
+
 namespace rig {
 namespace {
 
@@ -53,6 +55,15 @@ std::vector<Pose> PlanGrid(const GridConfig& g) {
     }
   }
   return poses;
+}
+
+std::string SoftLimitViolation(const MotorConfig& m, const Pose& pose) {
+  if (pose.h_deg >= m.h_limit_min_deg && pose.h_deg <= m.h_limit_max_deg &&
+      pose.v_deg >= m.v_limit_min_deg && pose.v_deg <= m.v_limit_max_deg)
+    return "";
+  return fmt::format("h {} v {} deg is outside the soft limits h {}..{} v {}..{}", pose.h_deg,
+                     pose.v_deg, m.h_limit_min_deg, m.h_limit_max_deg, m.v_limit_min_deg,
+                     m.v_limit_max_deg);
 }
 
 }  // namespace rig

@@ -25,4 +25,8 @@ Result<Pose> ParsePoseName(const std::string& name);
 // move is one step) or raster.
 std::vector<Pose> PlanGrid(const GridConfig& grid);
 
+// Why `pose` is outside the motor's soft limits ("h 120 v 10 deg is outside the soft limits
+// h -5..95 v -5..60"), or empty when it is inside. Every motor backend refuses such a move.
+std::string SoftLimitViolation(const MotorConfig& motor, const Pose& pose);
+
 }  // namespace rig

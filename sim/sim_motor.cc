@@ -121,12 +121,8 @@ Status SimMotor::MoveTo(const Pose& pose) {
   std::lock_guard<std::mutex> lock(mu_);
   if (!open_) return MotorError(ErrorCode::kDevice, "move before Open()");
   const auto& m = motor_;
-  if (pose.h_deg < m.h_limit_min_deg || pose.h_deg > m.h_limit_max_deg ||
-      pose.v_deg < m.v_limit_min_deg || pose.v_deg > m.v_limit_max_deg)
-    return MotorError(ErrorCode::kInvalidInput,
-                      fmt::format("pose {} is outside the soft limits h {} .. {} deg, v {} .. {} deg",
-                                  pose.Name(), m.h_limit_min_deg, m.h_limit_max_deg,
-                                  m.v_limit_min_deg, m.v_limit_max_deg));
+  if (const std::string why = SoftLimitViolation(m, pose); !why.empty())
+    return MotorError(ErrorCode::kInvalidInput, fmt::format("pose {}: {}", pose.Name(), why));
   if (!known_)
     return MotorError(ErrorCode::kDevice,
                       fmt::format("move to pose {} refused: position unknown after a stall; "
