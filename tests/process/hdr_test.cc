@@ -119,6 +119,21 @@ TEST(RadianceMerge, RecoversTheTrueRadianceAndBeatsOpenCvByFiveTimesOnTheSameBra
   EXPECT_LT(5 * ours, opencv);
 }
 
+TEST(RadianceMerge, TheVectorAndScalarPathsGiveTheSameRadiance) {
+  const Scene s = MakeScene(5, 1, 203, 61);  // a width that leaves a scalar tail
+  const ResponseCurve r = Recover(s.bracket);
+  MergeOptions mo;
+  mo.max_unrecorded_fraction = 1.0;
+  auto simd = MergeBracket(s.bracket, r, mo);
+  setenv("RIG_NO_SIMD", "1", 1);
+  auto scalar = MergeBracket(s.bracket, r, mo);
+  unsetenv("RIG_NO_SIMD");
+  ASSERT_TRUE(simd.ok() && scalar.ok());
+  // Sums in a different order: equal to float rounding.
+  EXPECT_LT(cv::norm(simd->radiance, scalar->radiance, cv::NORM_RELATIVE | cv::NORM_INF), 1e-5);
+  EXPECT_EQ(cv::countNonZero(simd->flags != scalar->flags), 0);
+}
+
 TEST(RadianceMerge, PixelsNoExposureRecordsAreFlaggedNotInvented) {
   const Scene s = MakeScene();
   const ResponseCurve r = Recover(s.bracket);
