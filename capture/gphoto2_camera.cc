@@ -99,6 +99,84 @@ class GPhoto2Camera final : public Camera {
   }
 
   Status Open() override {
+    RIG_TRY(OpenSelected());
+    // A body opened again (after a disconnect) gets the session's settings again: some
+    // bodies and libgphoto2's own capture target forget them with the connection.
+    if (configured_) {
+      auto again = Configure(*configured_);
+      if (!again.ok()) return again.error();
+    }
+    return Ok();
+  }
+
+  void Close() override {
+    CloseBody();
+    if (context_) gp_context_unref(context_);
+    context_ = nullptr;
+  }
+
+  Result<std::vector<Seconds>> ShutterSpeeds() override {
+    RIG_ASSIGN_OR_RETURN(Speeds s, ReadSpeeds());
+    std::vector<Seconds> out;
+    for (const auto& [v, label] : s.choices) out.push_back(Seconds(v));
+    return out;
+  }
+
+  Result<CameraSettings> Configure(const CameraSettings& wanted) override {
+    CameraSettings applied;
+    // ISO and aperture are matched by value ("8" finds "f/8", "100" finds "ISO 100");
+    // white balance by its name, which is the body's own (and may be translated).
+    RIG_ASSIGN_OR_RETURN(applied.iso, ApplyChoice({"iso", "isospeed"}, "camera.iso", wanted.iso, MatchNumber));
+    RIG_ASSIGN_OR_RETURN(applied.aperture,
+                         ApplyChoice({"f-number", "aperture"}, "camera.aperture", wanted.aperture, MatchNumber));
+    RIG_ASSIGN_OR_RETURN(applied.white_balance, ApplyChoice({"whitebalance"}, "camera.white_balance",
+                                                            wanted.white_balance, MatchName));
+    if (!wanted.capture_target.empty()) {
+      // libgphoto2 lists "Internal RAM" then "Memory card", translated into the user's
+      // language: chosen by position, never by the label.
+      const int index = wanted.capture_target == "card" ? 1 : 0;
+      RIG_ASSIGN_OR_RETURN(bool offered, SetChoiceIndex("capturetarget", index));
+      if (offered) {
+        applied.capture_target = wanted.capture_target;
+      } else {
+        Log("camera")->warn("camera {}: this body has no capture target setting; it keeps its own",
+                            Describe());
+        applied.capture_target.clear();
+      }
+    }
+    if (wanted.capture_raw) {
+      // "RAW + Large Fine JPEG" (Canon), "NEF+Fine" (Nikon), "RAW+JPEG" ...: the first
+      // RAW+JPEG choice the body lists.
+      RIG_ASSIGN_OR_RETURN(std::string pair, ApplyChoice({"imageformat", "imagequality"}, "camera.capture_raw",
+                                                         "RAW+JPEG", MatchRawPlusJpeg));
+      applied.capture_raw = !pair.empty();
+    }
+    raw_pair_ = applied.capture_raw;
+    configured_ = wanted;
+    return applied;
+  }
+
+  Result<CapturedFrame> Capture(Seconds exposure) override {
+    RIG_ASSIGN_OR_RETURN(Speeds s, ReadSpeeds());
+    // The body's own value closest to what was asked (in stops), matched by value.
+    const std::pair<double, std::string>* best = nullptr;
+    auto stops = [&](double v) { return std::abs(std::log2(v / exposure.count())); };
+    for (const auto& c : s.choices)
+      if (!best || stops(c.first) < stops(best->first)) best = &c;
+    if (!best) return MakeError(ErrorCode::kUnsupported, Describe(), "the body lists no shutter speeds");
+    // A busy body gets the whole step again — the exposure set anew on a fresh widget too.
+    return RetryWhileBusy(fmt::format("capturing at {}", best->second),
+                          [&] { return CaptureOnce(s.widget, *best); });
+  }
+
+ private:
+  struct Speeds {
+    std::string widget;                                 // "shutterspeed" or "shutterspeed2"
+    std::vector<std::pair<double, std::string>> choices;  // ascending seconds, body's label
+  };
+
+  // Opens the configured body, or the first detected one that matches model, port, serial.
+  Status OpenSelected() {
     Close();
     context_ = gp_context_new();
     // Per-call timeout: libgphoto2 asks the context whether to cancel during long
@@ -141,76 +219,149 @@ class GPhoto2Camera final : public Camera {
     }
     return last;
   }
-
-  void Close() override {
-    CloseBody();
-    if (context_) gp_context_unref(context_);
-    context_ = nullptr;
-  }
-
-  Result<std::vector<Seconds>> ShutterSpeeds() override {
-    RIG_ASSIGN_OR_RETURN(Speeds s, ReadSpeeds());
-    std::vector<Seconds> out;
-    for (const auto& [v, label] : s.choices) out.push_back(Seconds(v));
-    return out;
-  }
-
-  Result<CameraSettings> Configure(const CameraSettings& wanted) override {
-    auto log = Log("camera");
-    CameraSettings applied = wanted;
-    auto apply = [&](const std::vector<const char*>& names, const std::string& value, std::string* out) {
-      if (value.empty()) return;
-      for (const char* name : names) {
-        if (SetValue(name, value).ok()) {
-          auto back = GetValue(name);
-          *out = back.ok() ? *back : value;
-          return;
-        }
-      }
-      log->warn("camera {}: this body offers no setting {} = '{}'; left as it is", Describe(), names[0], value);
-      out->clear();
-    };
-    apply({"iso", "isospeed"}, wanted.iso, &applied.iso);
-    apply({"f-number", "aperture"}, wanted.aperture, &applied.aperture);
-    apply({"whitebalance"}, wanted.white_balance, &applied.white_balance);
-    if (!wanted.capture_target.empty()) {
-      const std::string label = wanted.capture_target == "card" ? "Memory card" : "Internal RAM";
-      if (!SetValue("capturetarget", label).ok()) {
-        log->warn("camera {}: no capture target setting; the body keeps its own", Describe());
-      }
-    }
-    return applied;
-  }
-
-  Result<CapturedFrame> Capture(Seconds exposure) override {
-    const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                             std::chrono::duration<double>(config_.capture_deadline_s));
-    RIG_ASSIGN_OR_RETURN(Speeds s, ReadSpeeds());
-    // The body's own value closest to what was asked (in stops), matched by value.
-    const std::pair<double, std::string>* best = nullptr;
-    for (const auto& c : s.choices)
-      if (!best || std::abs(std::log2(c.first / exposure.count())) < std::abs(std::log2(best->first / exposure.count())))
-        best = &c;
-    if (!best) return MakeError(ErrorCode::kUnsupported, Describe(), "the body lists no shutter speeds");
+  // Runs `f` again while the body answers busy, with doubling back-off, within the retries
+  // and the capture deadline; each try fetches its widgets afresh (an old one is stale).
+  template <typename F>
+  auto RetryWhileBusy(const std::string& what, F f) -> decltype(f()) {
+    const auto deadline = Clock::now() + ToClock(config_.capture_deadline_s);
     double backoff = config_.retry_backoff_s;
     for (int attempt = 0;; ++attempt) {
-      auto frame = CaptureOnce(s.widget, *best);
-      if (frame.ok()) return frame;
-      const bool busy = frame.error().code == ErrorCode::kBusy;
-      if (!busy || attempt >= config_.retries || Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                                     std::chrono::duration<double>(backoff)) > deadline)
-        return frame;
-      Log("camera")->warn("camera {}: busy; retrying in {:.2f} s", Describe(), backoff);
+      auto r = f();
+      if (r.ok() || r.error().code != ErrorCode::kBusy || attempt >= config_.retries ||
+          Clock::now() + ToClock(backoff) > deadline)
+        return r;
+      Log("camera")->warn("camera {}: busy {}; retry {}/{} in {:.2f} s", Describe(), what, attempt + 1,
+                          config_.retries, backoff);
       std::this_thread::sleep_for(std::chrono::duration<double>(backoff));
       backoff *= 2;
     }
   }
 
- private:
-  struct Speeds {
-    std::string widget;                                 // "shutterspeed" or "shutterspeed2"
-    std::vector<std::pair<double, std::string>> choices;  // ascending seconds, body's label
-  };
+  static Clock::duration ToClock(double seconds) {
+    return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
+  }
+
+  // Choice matchers: (the body's label, the configured value).
+  static bool MatchNumber(const std::string& label, const std::string& wanted) {
+    auto number = [](std::string t) -> std::optional<double> {
+      for (const char* prefix : {"f/", "F/", "ISO", "iso", "F"})
+        if (t.rfind(prefix, 0) == 0) t.erase(0, std::strlen(prefix));
+      while (!t.empty() && t.front() == ' ') t.erase(0, 1);
+      try {
+        size_t used = 0;
+        const double v = std::stod(t, &used);
+        if (used != t.size()) return std::nullopt;
+        return v;
+      } catch (const std::exception&) {
+        return std::nullopt;
+      }
+    };
+    const auto a = number(label), b = number(wanted);
+    return a && b && std::abs(*a - *b) <= 1e-3 * std::max(1.0, std::abs(*b));
+  }
+  static std::string Upper(std::string t) {
+    for (char& c : t) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    return t;
+  }
+  static bool MatchName(const std::string& label, const std::string& wanted) {
+    return Upper(label) == Upper(wanted);
+  }
+  static bool MatchRawPlusJpeg(const std::string& label, const std::string&) {
+    const std::string u = Upper(label);
+    if (u.find('+') == std::string::npos) return false;
+    for (const char* raw : {"RAW", "NEF", "CR2", "CR3", "ARW", "RAF", "ORF", "PEF", "RW2", "DNG"})
+      if (u.find(raw) != std::string::npos) return true;
+    return false;
+  }
+
+  // The setting's widget, fetched afresh (the caller frees it); nullptr when the body lacks it.
+  Result<CameraWidget*> FreshWidget(const char* name) {
+    if (!camera_) return MakeError(ErrorCode::kFault, Describe(), "not open");
+    Arm();
+    CameraWidget* w = nullptr;
+    const int rc = gp_camera_get_single_config(camera_, name, &w, context_);
+    if (rc == GP_ERROR_BAD_PARAMETERS || rc == GP_ERROR_NOT_SUPPORTED) return nullptr;
+    if (rc < 0) return Failure(rc, fmt::format("reading '{}'", name));
+    return w;
+  }
+
+  // Sets the first of `names` the body offers to its choice that `match`es `wanted` and
+  // returns the value read back. Empty `wanted`: nothing to do. A body without the setting:
+  // a warning and "". A body with the setting but not this value: an error listing its own.
+  Result<std::string> ApplyChoice(const std::vector<const char*>& names, const char* key,
+                                  const std::string& wanted,
+                                  bool (*match)(const std::string&, const std::string&)) {
+    if (wanted.empty()) return std::string();
+    for (const char* name : names) {
+      bool absent = false;
+      auto r = RetryWhileBusy(fmt::format("setting '{}'", name), [&]() -> Result<std::string> {
+        RIG_ASSIGN_OR_RETURN(CameraWidget * w, FreshWidget(name));
+        if (!w) {
+          absent = true;
+          return std::string();
+        }
+        CameraWidgetType type;
+        gp_widget_get_type(w, &type);
+        int rc = GP_OK;
+        if (type == GP_WIDGET_RADIO || type == GP_WIDGET_MENU) {
+          std::vector<std::string> offered;
+          std::string chosen;
+          const int n = gp_widget_count_choices(w);
+          for (int i = 0; i < n; ++i) {
+            const char* c = nullptr;
+            if (gp_widget_get_choice(w, i, &c) < 0 || !c) continue;
+            offered.push_back(c);
+            if (chosen.empty() && match(c, wanted)) chosen = c;
+          }
+          if (chosen.empty()) {
+            gp_widget_free(w);
+            return MakeError(ErrorCode::kInvalidInput, Describe(), "{} = '{}': the body's '{}' offers only {}", key,
+                             wanted, name, fmt::join(offered, ", "));
+          }
+          rc = gp_widget_set_value(w, chosen.c_str());
+        } else if (type == GP_WIDGET_RANGE) {
+          const auto v = ParseShutterSpeed(wanted);  // a plain positive number
+          if (!v) {
+            gp_widget_free(w);
+            return MakeError(ErrorCode::kInvalidInput, Describe(), "{} = '{}': the body's '{}' wants a number",
+                             key, wanted, name);
+          }
+          const float f = static_cast<float>(*v);
+          rc = gp_widget_set_value(w, &f);
+        } else {
+          rc = gp_widget_set_value(w, wanted.c_str());
+        }
+        Arm();
+        if (rc >= 0) rc = gp_camera_set_single_config(camera_, name, w, context_);
+        gp_widget_free(w);
+        if (rc < 0) return Failure(rc, fmt::format("setting '{}' to '{}'", name, wanted));
+        return GetValue(name);
+      });
+      if (!r.ok()) return r.error();
+      if (absent) continue;
+      Log("camera")->info("camera set {}=\"{}\" ({} = '{}')", name, *r, key, wanted);
+      return r;
+    }
+    Log("camera")->warn("camera {}: this body offers no '{}' setting; {} = '{}' is left as the body has it",
+                        Describe(), names[0], key, wanted);
+    return std::string();
+  }
+
+  // Sets a radio setting by the position of its choice; false when the body lacks it.
+  Result<bool> SetChoiceIndex(const char* name, int index) {
+    return RetryWhileBusy(fmt::format("setting '{}'", name), [&]() -> Result<bool> {
+      RIG_ASSIGN_OR_RETURN(CameraWidget * w, FreshWidget(name));
+      if (!w) return false;
+      const char* c = nullptr;
+      int rc = gp_widget_get_choice(w, index, &c);
+      if (rc >= 0) rc = gp_widget_set_value(w, c);
+      Arm();
+      if (rc >= 0) rc = gp_camera_set_single_config(camera_, name, w, context_);
+      gp_widget_free(w);
+      if (rc < 0) return Failure(rc, fmt::format("setting '{}' to choice {}", name, index));
+      return true;
+    });
+  }
 
   Error Failure(int rc, const std::string& during) const {
     std::string msg = fmt::format("{}: {} ({})", during, gp_result_as_string(rc), rc);
@@ -319,8 +470,9 @@ class GPhoto2Camera final : public Camera {
     // Nikon offers "shutterspeed2" with "1/100" beside "shutterspeed" with "0.0100s"; both
     // parse by value, so either serves. Labels are never matched as text.
     for (const char* name : {"shutterspeed", "shutterspeed2", "exptime"}) {
-      CameraWidget* w = nullptr;
-      if (gp_camera_get_single_config(camera_, name, &w, context_) < 0) continue;
+      RIG_ASSIGN_OR_RETURN(CameraWidget * w, RetryWhileBusy(fmt::format("reading '{}'", name),
+                                                            [&] { return FreshWidget(name); }));
+      if (!w) continue;
       Speeds s{name, {}};
       const int n = gp_widget_count_choices(w);
       for (int i = 0; i < n; ++i) {
@@ -352,21 +504,29 @@ class GPhoto2Camera final : public Camera {
     frame.exposure = Seconds(*applied);
     RIG_ASSIGN_OR_RETURN(CapturedFile file, Download(path));
     frame.files.push_back(std::move(file));
-    // Drain the events the capture raised (a RAW+JPEG body announces the second file here).
-    for (int i = 0; i < 50; ++i) {
+    // Drain every pending event (bodies stay busy otherwise) until the body has nothing
+    // more to say. A RAW+JPEG body announces its second file here, sometimes only after a
+    // while: wait for it; else a short wait drains what is already queued.
+    for (int i = 0; i < 100; ++i) {
+      const bool pair_due = raw_pair_ && frame.files.size() < 2;
+      const int wait_ms = pair_due ? static_cast<int>(config_.call_timeout_s * 1000) : 10;
       CameraEventType type;
       void* data = nullptr;
-      rc = gp_camera_wait_for_event(camera_, 50, &type, &data, context_);
-      if (rc < 0 || type == GP_EVENT_TIMEOUT || type == GP_EVENT_CAPTURE_COMPLETE) {
-        free(data);
-        break;
-      }
+      Arm();
+      rc = gp_camera_wait_for_event(camera_, wait_ms, &type, &data, context_);
+      if (rc < 0) return Failure(rc, "waiting for the capture's events");
       if (type == GP_EVENT_FILE_ADDED && data) {
-        auto* added = static_cast<CameraFilePath*>(data);
-        auto extra = Download(*added);
-        if (extra.ok()) frame.files.push_back(std::move(extra).value());
+        RIG_ASSIGN_OR_RETURN(CapturedFile extra, Download(*static_cast<CameraFilePath*>(data)));
+        frame.files.push_back(std::move(extra));
       }
       free(data);
+      if (type == GP_EVENT_TIMEOUT) {
+        if (pair_due)
+          return MakeError(ErrorCode::kDevice, Describe(),
+                           "asked for RAW+JPEG but the body delivered only {} within {} s", path.name,
+                           config_.call_timeout_s);
+        break;
+      }
     }
     for (const auto& f : frame.files) {
       if (f.extension != "jpg" && f.extension != "jpeg") continue;
@@ -413,6 +573,8 @@ class GPhoto2Camera final : public Camera {
   ::Camera* camera_ = nullptr;
   std::string model_, port_;
   Clock::time_point call_deadline_{};
+  std::optional<CameraSettings> configured_;  // re-applied when the body is opened again
+  bool raw_pair_ = false;  // each capture delivers RAW and JPEG
 };
 
 }  // namespace

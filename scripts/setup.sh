@@ -13,8 +13,8 @@ packages=(
   # infrastructure
   libspdlog-dev libfmt-dev libtomlplusplus-dev libcli11-dev nlohmann-json3-dev
   zlib1g-dev
-  # tests and benchmarks (libltdl-dev, libusb: building libgphoto2's virtual camera)
-  libgtest-dev libgmock-dev libbenchmark-dev libltdl-dev libusb-1.0-0-dev
+  # tests and benchmarks (libltdl-dev, xz-utils: building libgphoto2's virtual camera)
+  libgtest-dev libgmock-dev libbenchmark-dev libltdl-dev xz-utils
 )
 
 missing=()
