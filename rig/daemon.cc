@@ -171,12 +171,16 @@ Status CaptureDaemon::Run(CaptureSummary* summary) {
   auto fault = [&](const Error& e, const std::string& device) -> Status {
     ++sum.faults;
     park();
-    Error err = e.Within("pose " + current_pose);
-    log->error("fault: {}: {}", device, err.ToString());
+    // "pose P: <device>: message" — the device's own context ("sim camera", "/dev/ttyACM0")
+    // only when its description does not already name it.
+    Error inner = e;
+    if (!inner.context.empty() && device.find(inner.context) != std::string::npos) inner.context.clear();
+    Error err = inner.Within(device).Within("pose " + current_pose);
+    log->error("fault: {}", err.ToString());
     Status st = journal.Append({{"event", "fault"}, {"device", device}, {"pose", current_pose},
                                 {"error", err.ToString()}});
     if (!st.ok()) log->error("{}", st.error().ToString());
-    return Error{ErrorCode::kFault, err.message, device + ": " + err.context};
+    return Error{ErrorCode::kFault, err.message, err.context};
   };
   auto interrupted = [&]() -> Status {
     park();

@@ -117,10 +117,17 @@ TEST(CaptureSession, SigkillAtRandomMomentsThenResumeGivesEveryFrameExactlyOnce)
   fs::path session = fs::path(dir) / "S";
   std::string log = dir + "/log.txt";
   std::mt19937 rng(7);
-  // Measure how long an uninterrupted run takes, to spread the kills over it.
+  // Measure how long an uninterrupted run takes, and how much of it is the program starting
+  // (until session.toml exists), to spread the kills over the capture itself: on a loaded
+  // machine the start alone can outlast a fixed window.
   auto t0 = std::chrono::steady_clock::now();
-  pid_t pid = testing::SpawnRig({"capture", "--config", cfg, "--out", (fs::path(dir) / "T").string(),
-                                 "--dry-run", "--no-progress", "--no-process"}, log);
+  const fs::path probe = fs::path(dir) / "T";
+  pid_t pid = testing::SpawnRig({"capture", "--config", cfg, "--out", probe.string(), "--dry-run",
+                                 "--no-progress", "--no-process"}, log);
+  while (!fs::exists(probe / "session.toml") &&
+         std::chrono::steady_clock::now() - t0 < std::chrono::seconds(30))
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  const double start_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   ASSERT_EQ(testing::WaitRig(pid), 0);
   double full_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
@@ -132,7 +139,8 @@ TEST(CaptureSession, SigkillAtRandomMomentsThenResumeGivesEveryFrameExactlyOnce)
                                          "--dry-run", "--no-progress", "--no-process"}
               : std::vector<std::string>{"resume", session.string(), "--no-progress", "--no-process"};
     pid = testing::SpawnRig(args, log);
-    double wait_s = std::uniform_real_distribution<double>(0.02, std::max(0.05, full_s / 4))(rng);
+    double wait_s =
+        start_s + std::uniform_real_distribution<double>(0.01, std::max(0.05, (full_s - start_s) / 4))(rng);
     std::this_thread::sleep_for(std::chrono::duration<double>(wait_s));
     int killed = kill(pid, SIGKILL) == 0;
     int status = testing::WaitRig(pid);

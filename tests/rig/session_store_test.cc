@@ -99,7 +99,12 @@ TEST(AtomicWrite, KilledWriterNeverLeavesAPartialFileUnderTheFinalName) {
   fs::path target = dir / "big.bin";
   const size_t kSize = 8 << 20;
   auto content = [&](int version) { return std::string(kSize, static_cast<char>('A' + version % 26)); };
+  // Kill moments spread over 0.1..3 times one write's duration on this machine (a loaded
+  // disk makes a write take anything from milliseconds to a second).
+  const auto t0 = std::chrono::steady_clock::now();
   ASSERT_TRUE(WriteFileAtomic(target, content(0)).ok());
+  const auto one_write = std::chrono::duration_cast<std::chrono::microseconds>(
+      std::chrono::steady_clock::now() - t0);
   std::mt19937 rng(42);
   int observed_versions = 0;
   for (int round = 0; round < 12; ++round) {
@@ -110,7 +115,7 @@ TEST(AtomicWrite, KilledWriterNeverLeavesAPartialFileUnderTheFinalName) {
         if (!WriteFileAtomic(target, content(v)).ok()) _exit(3);
       }
     }
-    std::this_thread::sleep_for(std::chrono::microseconds(2000 + rng() % 60000));
+    std::this_thread::sleep_for(one_write / 10 + one_write * int(rng() % 290) / 100);
     kill(pid, SIGKILL);
     int status = 0;
     waitpid(pid, &status, 0);
