@@ -1,7 +1,7 @@
 // HDR benchmark: ours beside OpenCV's CalibrateDebevec + MergeDebevec on the same frames, in
 // one run: accuracy against known radiance, response error, merge and recovery speed, decoding
 // and EXR writing. Usage: hdr_bench [--width W --height H --frames N --repeat R --threads T]
-//                                   [--shared DIR] [--sim-config TOML] [--sweep]
+//                                   [--shared DIR] [--sim-config TOML] [--sweep] [--profile]
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -66,6 +67,9 @@ struct Accuracy {
   double ours_rms = 0, cv_rms = 0, ours_g = 0, cv_g = 0;
   double ours_g_mid = 0;  // over levels 32..224 (the toe and shoulder left out)
   double oracle_rms = 0;  // our merge through the TRUE response: the floor noise leaves
+  double bound_rms = -1;  // exact inverse-variance merge, true response and noise (-1: n/a)
+  // Merge error per weighting (hat, photon, noise), through our response and the true one.
+  std::array<double, 3> weighting_ours{}, weighting_true{};
   size_t pixels = 0;
 };
 
@@ -83,10 +87,53 @@ double CurveError(const TrueCurve& g, const TrueCurve& truth, int lo = 13, int h
   return worst;
 }
 
+// The noise a bracket was rendered with (RenderBracket's shot and read terms, relative to the
+// saturation exposure), when it is known.
+struct NoiseModel {
+  double shot = 0, read = 0;
+};
+
+// What any per-pixel estimator can reach on this bracket: every sample weighted by the exact
+// inverse of its log-radiance variance — shot and read noise from the known noise model plus
+// 8-bit quantisation through the true slope g'(z) (g'^2/12) — through the TRUE response.
+// The bound the 1/5-of-OpenCV demand has to be measured against.
+cv::Mat InverseVarianceMerge(const Bracket& b, const TrueCurve& f, const NoiseModel& nm) {
+  std::array<std::array<double, 256>, 3> g{}, var{};
+  for (int c = 0; c < 3; ++c) {
+    for (int z = 0; z < 256; ++z) g[c][z] = f(c, std::max(z, 1));
+    for (int z = 1; z < 255; ++z) {
+      const double slope = 0.5 * (g[c][z + 1] - g[c][z - 1]);
+      const double x = std::exp(g[c][z]);
+      var[c][z] = slope * slope / 12 + (nm.shot * x + nm.read * nm.read) / (x * x);
+    }
+  }
+  cv::Mat out(b[0].image.size(), CV_32FC3);
+  for (int y = 0; y < out.rows; ++y) {
+    float* o = out.ptr<float>(y);
+    for (int k = 0; k < out.cols * 3; ++k) {
+      const int c = k % 3;
+      double num = 0, den = 0;
+      for (const auto& fr : b) {
+        const int z = fr.image.ptr<uint8_t>(y)[k];
+        if (z == 0 || z == 255) continue;
+        const double w = 1.0 / var[c][z];
+        num += w * (g[c][z] - std::log(fr.exposure.count()));
+        den += w;
+      }
+      o[k] = den > 0 ? float(std::exp(num / den)) : 0.f;
+    }
+  }
+  return out;
+}
+
+bool g_profile = false;  // --profile: print g - g_true at chosen levels for every bracket
+
 // Accuracy of both pipelines on one bracket with known radiance.
 Accuracy Compare(const Bracket& b, const cv::Mat& truth, const TrueCurve& f,
-                 const rig::ResponseOptions& ro, int threads) {
+                 const rig::ResponseOptions& ro, int threads,
+                 std::optional<NoiseModel> noise = std::nullopt) {
   Accuracy a;
+  if (noise) a.bound_rms = rig::synth::LogRmsError(InverseVarianceMerge(b, f, *noise), truth, b);
   const Bracket brackets[1] = {b};
   auto resp = rig::RecoverResponse(brackets, ro);
   if (!resp.ok()) {
@@ -104,6 +151,22 @@ Accuracy Compare(const Bracket& b, const cv::Mat& truth, const TrueCurve& f,
   a.ours_rms = rig::synth::LogRmsError(map->radiance, truth, b, &a.pixels);
   a.ours_g = CurveError([&](int c, int z) { return resp->log_exposure[c][z]; }, f);
   a.ours_g_mid = CurveError([&](int c, int z) { return resp->log_exposure[c][z]; }, f, 32, 224);
+  if (g_profile) {
+    // Offsets removed over 32..224 as in the g 32-224 column.
+    for (int c = 0; c < 3; ++c) {
+      double mean = 0;
+      for (int z = 32; z <= 224; ++z) mean += resp->log_exposure[c][z] - f(c, z);
+      mean /= 193;
+      std::printf("  g - g_true, channel %c:", "BGR"[c]);
+      for (int z : {3, 6, 10, 13, 20, 32, 64, 128, 192, 224, 232, 242, 248, 252})
+        std::printf(" %d:%+.3f", z, resp->log_exposure[c][z] - f(c, z) - mean);
+      std::printf("\n");
+    }
+    std::printf("  g_true - g_true(128), channel G:");
+    for (int z : {3, 6, 10, 13, 20, 32, 64, 128, 192, 224, 232, 242, 248, 252})
+      std::printf(" %d:%+.2f", z, f(1, z) - f(1, 128));
+    std::printf("\n");
+  }
   rig::ResponseCurve true_g;
   for (int c = 0; c < 3; ++c) {
     for (int z = 0; z < 256; ++z) true_g.log_exposure[c].push_back(f(c, std::max(z, 1)));
@@ -111,6 +174,17 @@ Accuracy Compare(const Bracket& b, const cv::Mat& truth, const TrueCurve& f,
   true_g.id = "truth";
   auto oracle = rig::MergeBracket(b, true_g, mo);
   if (oracle.ok()) a.oracle_rms = rig::synth::LogRmsError(oracle->radiance, truth, b);
+
+  const rig::MergeWeighting weightings[3] = {rig::MergeWeighting::kHat, rig::MergeWeighting::kPhoton,
+                                             rig::MergeWeighting::kNoise};
+  for (int k = 0; k < 3; ++k) {
+    rig::MergeOptions wo = mo;
+    wo.weighting = weightings[k];
+    auto ours = rig::MergeBracket(b, *resp, wo);
+    auto through_truth = rig::MergeBracket(b, true_g, wo);
+    if (ours.ok()) a.weighting_ours[k] = rig::synth::LogRmsError(ours->radiance, truth, b);
+    if (through_truth.ok()) a.weighting_true[k] = rig::synth::LogRmsError(through_truth->radiance, truth, b);
+  }
 
   cv::Mat cv_resp, cv_hdr;
   cv::createCalibrateDebevec()->process(Images(b), cv_resp, Times(b));
@@ -120,10 +194,14 @@ Accuracy Compare(const Bracket& b, const cv::Mat& truth, const TrueCurve& f,
   return a;
 }
 
+std::vector<std::pair<std::string, Accuracy>> g_rows;  // for the weighting table
+
 void PrintAccuracy(const char* name, const Accuracy& a) {
-  std::printf("%-34s %10.4f %10.4f %8.1fx %10.4f   %8.4f %8.4f %8.4f   %zu\n", name,
-              a.ours_rms, a.cv_rms, a.cv_rms / a.ours_rms, a.oracle_rms, a.ours_g, a.cv_g,
-              a.ours_g_mid, a.pixels);
+  g_rows.emplace_back(name, a);
+  const std::string bound = a.bound_rms < 0 ? "-" : fmt::format("{:.4f}", a.bound_rms);
+  std::printf("%-34s %10.4f %10.4f %8.1fx %10.4f %10s %9.4f   %8.4f %8.4f %8.4f   %zu\n", name,
+              a.ours_rms, a.cv_rms, a.cv_rms / a.ours_rms, a.oracle_rms, bound.c_str(),
+              a.cv_rms / 5, a.ours_g, a.cv_g, a.ours_g_mid, a.pixels);
 }
 
 // A real HDR image as a bracket with known truth: scaled to median 1, negatives clipped,
@@ -149,8 +227,9 @@ bool RealBracket(const std::string& path, const rig::synth::FilmicResponse& f, i
 
 // The simulator's own camera (config/sim.toml: its response, noise, JPEG encoding) on its
 // own scene's exact radiance at one lamp pose, over the configured bracket.
-bool SimulatorBracket(const std::string& config_path, int width, int height, cv::Mat* truth,
-                      Bracket* bracket, TrueCurve* g) {
+bool SimulatorBracket(const std::string& config_path, int width, int height,
+                      const std::string& format, cv::Mat* truth, Bracket* bracket, TrueCurve* g,
+                      NoiseModel* noise) {
   auto cfg = rig::LoadConfigOrError(config_path);
   if (!cfg.ok()) {
     std::fprintf(stderr, "%s\n", cfg.error().ToString().c_str());
@@ -158,6 +237,10 @@ bool SimulatorBracket(const std::string& config_path, int width, int height, cv:
   }
   cfg->sim.width = width;
   cfg->sim.height = height;
+  cfg->sim.camera.format = format;
+  // Electrons: shot variance X * gain, read variance read_e^2; in X (radiance * s) units.
+  const auto& k = cfg->sim.camera;
+  *noise = {k.shot_noise ? 1.0 / k.gain : 0.0, k.read_noise_e / k.gain};
   auto cam = rig::SimCamera::Create(*cfg, std::make_shared<rig::SimWorld>());
   if (!cam.ok()) {
     std::fprintf(stderr, "%s\n", cam.error().ToString().c_str());
@@ -205,9 +288,10 @@ int main(int argc, char** argv) {
     else if (a == "--shared") args.shared = next();
     else if (a == "--sim-config") args.sim_config = next();
     else if (a == "--sweep") args.sweep = true;
+    else if (a == "--profile") g_profile = true;
     else {
       std::fprintf(stderr, "usage: hdr_bench [--width W] [--height H] [--frames N] [--repeat R] "
-                           "[--threads T] [--shared DIR] [--sim-config TOML] [--sweep]\n");
+                           "[--threads T] [--shared DIR] [--sim-config TOML] [--sweep] [--profile]\n");
       return 2;
     }
   }
@@ -233,20 +317,30 @@ int main(int argc, char** argv) {
 
   // --- accuracy ---
   std::printf("ACCURACY (log-radiance RMS on well-recorded pixels, mean offset per channel "
-              "removed;\n          true-g: our merge through the TRUE response, the floor noise "
-              "and quantisation leave;\n          response: max |g - g_true| over levels 13..242 "
+              "removed;\n          true-g: our merge through the TRUE response;\n"
+              "          bound: exact inverse-variance weights (true noise model and quantisation) "
+              "through the TRUE response,\n          what any per-pixel estimator can reach "
+              "(-: noise model not known: JPEG);\n          response: max |g - g_true| over levels 13..242 "
               "(g 32-224: over 32..224), mean offset removed)\n");
-  std::printf("%-34s %10s %10s %9s %10s   %8s %8s %8s   %s\n", "bracket", "ours", "opencv",
-              "ratio", "true-g", "g ours", "g opencv", "g 32-224", "pixel-channels");
+  std::printf("%-34s %10s %10s %9s %10s %10s %9s   %8s %8s %8s   %s\n", "bracket", "ours",
+              "opencv", "ratio", "true-g", "bound", "opencv/5", "g ours", "g opencv", "g 32-224",
+              "pixel-channels");
   const TrueCurve film_g = [&film](int c, int z) { return film.TrueG(c, z); };
-  PrintAccuracy("synthetic 6 MP", Compare(b, truth, film_g, ro, args.threads));
-  {
+  const NoiseModel rendered{5e-5, 2.5e-4};  // RenderBracket's noise, used for every rendering
+  PrintAccuracy("synthetic 6 MP", Compare(b, truth, film_g, ro, args.threads, rendered));
+  // The simulator's camera as configured (JPEG), and the same exposures saved losslessly
+  // (PNG), where its noise model is all there is and the bound can be computed.
+  for (const char* format : {"jpg", "png"}) {
     cv::Mat st;
     Bracket sb;
     TrueCurve sg;
+    NoiseModel sn;
     const std::string cfg = args.sim_config.empty() ? DefaultSimConfig() : args.sim_config;
-    if (SimulatorBracket(cfg, 640, 480, &st, &sb, &sg)) {
-      PrintAccuracy("simulator camera 640x480 (JPEG)", Compare(sb, st, sg, ro, args.threads));
+    const bool jpeg = std::string(format) == "jpg";
+    if (SimulatorBracket(cfg, 640, 480, format, &st, &sb, &sg, &sn)) {
+      PrintAccuracy(jpeg ? "simulator camera 640x480 (JPEG)" : "simulator camera 640x480 (PNG)",
+                    Compare(sb, st, sg, ro, args.threads,
+                            jpeg ? std::nullopt : std::optional<NoiseModel>(sn)));
     } else {
       std::printf("%-34s (cannot set up the simulator from %s)\n", "simulator", cfg.c_str());
     }
@@ -261,7 +355,17 @@ int main(int argc, char** argv) {
       continue;
     }
     PrintAccuracy(fmt::format("{} {}x{}", name, rt.cols, rt.rows).c_str(),
-                  Compare(rb, rt, film_g, ro, args.threads));
+                  Compare(rb, rt, film_g, ro, args.threads, rendered));
+  }
+
+  std::printf("\nMERGE WEIGHTING (log-radiance RMS as above; through our response | through the "
+              "true one)\n%-34s %8s %8s %8s   | %8s %8s %8s %8s\n", "bracket", "hat", "photon",
+              "noise", "hat", "photon", "noise", "bound");
+  for (const auto& [name, a] : g_rows) {
+    const std::string bound = a.bound_rms < 0 ? "-" : fmt::format("{:.4f}", a.bound_rms);
+    std::printf("%-34s %8.4f %8.4f %8.4f   | %8.4f %8.4f %8.4f %8s\n", name.c_str(),
+                a.weighting_ours[0], a.weighting_ours[1], a.weighting_ours[2], a.weighting_true[0],
+                a.weighting_true[1], a.weighting_true[2], bound.c_str());
   }
 
   // --- speed ---
@@ -287,11 +391,24 @@ int main(int argc, char** argv) {
               args.frames);
   std::printf("response recovery, s (best/median)  %.4f/%.4f  %.4f/%.4f\n", rec.first,
               rec.second, cv_rec.first, cv_rec.second);
-  std::printf("merge MP/s (best, %d threads)        %8.1f  %8.2f  %6.1fx\n", args.threads,
+  std::printf("merge MP/s (best, %d threads)        %8.1f  %8.2f  %6.1fx   (fitted-noise weights, fit included)\n", args.threads,
               mp / merge.first, mp / cv_merge.first, cv_merge.first / merge.first);
   std::printf("merge MP/s (median, %d threads)      %8.1f  %8.2f  %6.1fx\n", args.threads,
               mp / merge.second, mp / cv_merge.second, cv_merge.second / merge.second);
   std::printf("merge MP/s (best, 1 thread)          %8.1f\n", mp / merge1.first);
+  for (auto [name, wt] : {std::pair{"hat weights", rig::MergeWeighting::kHat},
+                          std::pair{"photon weights", rig::MergeWeighting::kPhoton}}) {
+    rig::MergeOptions wo;
+    wo.threads = args.threads;
+    wo.weighting = wt;
+    auto t = Time(args.repeat, [&] { (void)*rig::MergeBracket(b, resp, wo); });
+    std::printf("merge MP/s (best, %d threads), %-20s %8.1f            %6.1fx\n", args.threads, name,
+                mp / t.first, cv_merge.first / t.first);
+  }
+  {
+    auto t = Time(args.repeat, [&] { (void)rig::FitNoise(b, resp, {-1, -1, -1}, {-1, -1, -1}); });
+    std::printf("noise model fit alone, s (best)      %.4f\n", t.first);
+  }
 
   // --- decoding and EXR writing ---
   const fs::path dir = fs::temp_directory_path() / ("rig_hdr_bench_" + std::to_string(::getpid()));
@@ -303,11 +420,12 @@ int main(int argc, char** argv) {
     cv::imwrite(files.back(), b[j].image, {cv::IMWRITE_JPEG_QUALITY, 95});
     times.push_back(b[j].exposure);
   }
-  auto dec1 = Time(std::max(1, args.repeat / 2), [&] { (void)*rig::DecodeFrames(files, times, 1); });
-  auto decn = Time(std::max(1, args.repeat / 2),
+  auto dec1 = Time(args.repeat, [&] { (void)*rig::DecodeFrames(files, times, 1); });
+  auto decn = Time(args.repeat,
                    [&] { (void)*rig::DecodeFrames(files, times, args.threads); });
-  auto cv_dec = Time(std::max(1, args.repeat / 2), [&] {
-    for (const auto& f : files) (void)cv::imread(f, cv::IMREAD_COLOR);
+  auto cv_dec = Time(args.repeat, [&] {
+    std::vector<cv::Mat> kept;  // kept, as a bracket must be (fresh memory for every frame)
+    for (const auto& f : files) kept.push_back(cv::imread(f, cv::IMREAD_COLOR));
   });
   std::printf("\nDECODE %d JPEG q95 frames             ours(1 thr) ours(%d thr) cv::imread loop\n",
               args.frames, args.threads);

@@ -441,6 +441,7 @@ void VisitConfig(Config& c, V& v) {
     v.Field("response_samples", p.response_samples, Range{16, 100000});
     v.Field("response_poses", p.response_poses, Range{1, 1000});
     v.Field("hdr_pixel_type", p.hdr_pixel_type, {"half", "float"});
+    v.Field("merge_weighting", p.merge_weighting, {"hat", "photon", "noise"});
     v.Field("basis", p.basis, {"sh", "hsh", "ptm"});
     v.Field("fit_method", p.fit_method, {"quadrature", "ls", "rls"});
     v.OrderField("order", p.order, Range{0, 12});

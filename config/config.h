@@ -101,9 +101,10 @@ struct LightFrameConfig {
 struct ProcessConfig {
   // HDR
   double response_lambda = 10;          // smoothness weight of Debevec-Malik
-  int response_samples = 300;           // pixel locations used for recovery
+  int response_samples = 1000;          // pixel locations used for recovery
   int response_poses = 4;               // brackets recovered from jointly
   std::string hdr_pixel_type = "float";  // "half" | "float"
+  std::string merge_weighting = "noise";  // "hat" | "photon" | "noise" (docs/hdr.md)
   // Reflectance model
   std::string basis = "sh";             // "sh" | "hsh" | "ptm"
   std::string fit_method = "rls";       // "quadrature" | "ls" | "rls"

@@ -569,6 +569,157 @@ Result<ResponseCurve> LoadResponse(const std::string& path) {
   return c;
 }
 
+double NoiseModel::Variance(const ResponseCurve& r, int c, int z) const {
+  const auto& g = r.log_exposure[c];
+  const int levels = int(g.size());
+  const int z0 = std::clamp(z - 1, 0, levels - 1), z1 = std::clamp(z + 1, 0, levels - 1);
+  const double slope = (g[z1] - g[z0]) / std::max(1, z1 - z0);
+  const double e = std::exp(-(g[z] - g[levels / 2]));
+  return quant[c] * slope * slope + shot[c] * e + read[c] * e * e;
+}
+
+NoiseModel FitNoise(std::span<const LdrFrame> frames, const ResponseCurve& response,
+                    std::array<int, 3> black_level, std::array<int, 3> saturation_level) {
+  NoiseModel m;
+  const int n = int(frames.size());
+  if (n < 2) return m;
+  const int levels = response.levels;
+  const bool sixteen = levels == 65536;
+  const int w = frames[0].image.cols, h = frames[0].image.rows;
+  // At most ~64k pixels per neighbouring pair and channel, in whole rows spread over the
+  // image (contiguous reads): a few ms for any image size.
+  const int rows_wanted = int((65536 + w - 1) / w);
+  const int row_step = std::max(1, h / rows_wanted);
+  m.ok = true;
+  for (int c = 0; c < 3; ++c) {
+    const auto& g = response.log_exposure[c];
+    const int lo = std::max(black_level[c], 0), hi = saturation_level[c] < 0 ? levels - 1 : saturation_level[c];
+    // The three features of each level (NoiseModel::Variance with unit coefficients).
+    std::vector<std::array<double, 3>> feature(levels);
+    for (int z = 0; z < levels; ++z) {
+      const int z0 = std::max(z - 1, 0), z1 = std::min(z + 1, levels - 1);
+      const double slope = (g[z1] - g[z0]) / std::max(1, z1 - z0);
+      const double e = std::exp(-(g[z] - g[levels / 2]));
+      feature[z] = {slope * slope, e, e * e};
+    }
+    // Squared differences binned by the pair of levels (8-bit: every pair; 16-bit: 256 bins
+    // a side): the count, the mean d^2 and the mean features of each bin.
+    const int shift = sixteen ? 8 : 0;
+    struct Bin {
+      double n = 0, d2 = 0, f[3] = {0, 0, 0};
+    };
+    std::vector<Bin> bins(256 * 256);
+    int64_t count = 0;
+    for (int j = 0; j + 1 < n; ++j) {
+      const double lt0 = std::log(frames[j].exposure.count()), lt1 = std::log(frames[j + 1].exposure.count());
+      for (int y = j % row_step; y < h; y += row_step) {
+        for (int x = 0; x < w; ++x) {
+          int z0, z1;
+          if (sixteen) {
+            z0 = frames[j].image.ptr<uint16_t>(y)[3 * x + c];
+            z1 = frames[j + 1].image.ptr<uint16_t>(y)[3 * x + c];
+          } else {
+            z0 = frames[j].image.ptr<uint8_t>(y)[3 * x + c];
+            z1 = frames[j + 1].image.ptr<uint8_t>(y)[3 * x + c];
+          }
+          if (z0 <= lo || z0 >= hi || z1 <= lo || z1 >= hi) continue;
+          const double d = (g[z0] - lt0) - (g[z1] - lt1);
+          if (std::abs(d) > 0.7) continue;  // not noise: motion, a flicker, a clipped channel
+          Bin& bin = bins[(z0 >> shift) * 256 + (z1 >> shift)];
+          bin.n += 1;
+          bin.d2 += d * d;
+          for (int i = 0; i < 3; ++i) bin.f[i] += feature[z0][i] + feature[z1][i];
+          ++count;
+        }
+      }
+    }
+    m.pairs[c] = count;
+    if (count < 1000) {
+      m.ok = false;
+      continue;
+    }
+    std::vector<const Bin*> used;
+    for (Bin& bin : bins) {
+      if (bin.n == 0) continue;
+      bin.d2 /= bin.n;
+      for (double& f : bin.f) f /= bin.n;
+      used.push_back(&bin);
+    }
+    // Iteratively reweighted least squares: a bin's mean d^2 has variance 2 v^2 / n under
+    // Gaussian noise, so it weighs n / v^2 with v the current prediction (the first pass
+    // weighs by n alone). Each pass is a non-negative least squares in three unknowns: the
+    // best of the 7 subsets of terms whose unconstrained solution is non-negative (columns
+    // scaled for conditioning).
+    Eigen::Vector3d theta = Eigen::Vector3d::Zero();
+    bool have = false;
+    for (int pass = 0; pass < 5; ++pass) {
+      Eigen::Matrix3d a = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d b = Eigen::Vector3d::Zero();
+      double yy = 0;
+      for (const Bin* bin : used) {
+        const Eigen::Vector3d f(bin->f[0], bin->f[1], bin->f[2]);
+        double wt = bin->n;
+        if (have) {
+          const double v = theta.dot(f);
+          if (!(v > 0)) continue;
+          wt /= v * v;
+        }
+        a += wt * f * f.transpose();
+        b += wt * bin->d2 * f;
+        yy += wt * bin->d2 * bin->d2;
+      }
+      Eigen::Vector3d scale;
+      for (int i = 0; i < 3; ++i) scale(i) = a(i, i) > 0 ? 1.0 / std::sqrt(a(i, i)) : 0.0;
+      const Eigen::Matrix3d as = scale.asDiagonal() * a * scale.asDiagonal();
+      const Eigen::Vector3d bs = scale.cwiseProduct(b);
+      double best = std::numeric_limits<double>::infinity();
+      Eigen::Vector3d next = Eigen::Vector3d::Zero();
+      for (int mask = 1; mask < 8; ++mask) {
+        std::vector<int> idx;
+        for (int i = 0; i < 3; ++i)
+          if ((mask >> i & 1) && scale(i) > 0) idx.push_back(i);
+        if (idx.empty()) continue;
+        const int q = int(idx.size());
+        Eigen::MatrixXd sub(q, q);
+        Eigen::VectorXd rhs(q);
+        for (int u = 0; u < q; ++u) {
+          rhs(u) = bs(idx[u]);
+          for (int v = 0; v < q; ++v) sub(u, v) = as(idx[u], idx[v]);
+        }
+        const Eigen::VectorXd sol = sub.ldlt().solve(rhs);
+        if (!sol.allFinite() || (sol.array() < 0).any()) continue;
+        Eigen::Vector3d t = Eigen::Vector3d::Zero();
+        for (int u = 0; u < q; ++u) t(idx[u]) = sol(u);
+        const double residual = yy - 2 * t.dot(bs) + t.dot(as * t);
+        if (residual < best) {
+          best = residual;
+          next = t;
+        }
+      }
+      next = next.cwiseProduct(scale);
+      if (!(next.sum() > 0)) break;
+      theta = next;
+      have = true;
+    }
+    if (!have) {
+      m.ok = false;
+      continue;
+    }
+    m.quant[c] = theta(0);
+    m.shot[c] = theta(1);
+    m.read[c] = theta(2);
+  }
+  return m;
+}
+
+Result<MergeWeighting> ParseMergeWeighting(const std::string& name) {
+  if (name == "hat") return MergeWeighting::kHat;
+  if (name == "photon") return MergeWeighting::kPhoton;
+  if (name == "noise") return MergeWeighting::kNoise;
+  return MakeError(ErrorCode::kInvalidInput, "", "unknown merge weighting '{}' (hat, photon or noise)",
+                   name);
+}
+
 Result<RadianceMap> MergeBracket(std::span<const LdrFrame> frames, const ResponseCurve& response,
                                  const MergeOptions& o) {
   RIG_TRY(ValidateBracket(frames));
@@ -600,6 +751,23 @@ Result<RadianceMap> MergeBracket(std::span<const LdrFrame> frames, const Respons
     float w, wg;
   };
   std::vector<Entry> lut(size_t(n) * 3 * levels);
+  NoiseModel noise;
+  if (o.weighting == MergeWeighting::kNoise) noise = FitNoise(frames, response, lo, hi);
+  // Inverse variance per level and channel under the fitted model, with the hat's ends: the
+  // weight falls to zero over the last 1/16 of the range at either end (as the hat does), where
+  // a recovered g is least sure (docs/hdr.md: 1/32 lets the simulator's toe count too much).
+  std::vector<std::array<float, 3>> inv_var;
+  if (noise.ok) {
+    inv_var.resize(levels);
+    for (int c = 0; c < 3; ++c) {
+      const double ramp = (hi[c] - lo[c]) / 16.0;
+      for (int z = 0; z < levels; ++z) {
+        const double v = noise.Variance(response, c, z);
+        const double taper = std::min(1.0, Hat(z, lo[c], hi[c]) / ramp);
+        inv_var[z][c] = v > 0 && std::isfinite(v) ? float(taper / v) : 0.f;
+      }
+    }
+  }
   for (int j = 0; j < n; ++j) {
     const double lt = std::log(frames[j].exposure.count());
     for (int c = 0; c < 3; ++c) {
@@ -607,7 +775,9 @@ Result<RadianceMap> MergeBracket(std::span<const LdrFrame> frames, const Respons
       const double g_mid = response.log_exposure[c][levels / 2];
       for (int z = 0; z < levels; ++z) {
         double w = Hat(z, lo[c], hi[c]) / (levels / 2);
-        if (o.weighting == MergeWeighting::kPhoton) {
+        if (noise.ok) {
+          w = inv_var[z][c];
+        } else if (o.weighting != MergeWeighting::kHat) {
           w *= std::exp(response.log_exposure[c][z] - g_mid);
         }
         t[z] = {float(w), float(w * (response.log_exposure[c][z] - lt))};
@@ -751,6 +921,17 @@ Result<RadianceMap> MergeBracket(std::span<const LdrFrame> frames, const Respons
       "exposure); 2 a channel black in every exposure (holds 0)";
   map.attributes["saturated_pixels"] = std::to_string(map.saturated_pixels);
   map.attributes["black_pixels"] = std::to_string(map.black_pixels);
+  if (noise.ok) {
+    map.attributes["merge_weighting"] = fmt::format(
+        "inverse variance, fitted per channel B,G,R: quantisation {:.3g},{:.3g},{:.3g} x g'^2; "
+        "shot {:.3g},{:.3g},{:.3g} x exp(-G); read {:.3g},{:.3g},{:.3g} x exp(-2G); "
+        "G = g(z) - g(mid)",
+        noise.quant[0], noise.quant[1], noise.quant[2], noise.shot[0], noise.shot[1],
+        noise.shot[2], noise.read[0], noise.read[1], noise.read[2]);
+  } else {
+    map.attributes["merge_weighting"] =
+        o.weighting == MergeWeighting::kHat ? "hat" : "hat x exposure (photon noise)";
+  }
   return map;
 }
 

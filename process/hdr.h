@@ -33,7 +33,7 @@ struct ResponseCurve {
 
 struct ResponseOptions {
   double lambda = 10;   // smoothness weight (relative to the data term; see docs/hdr.md)
-  int samples = 300;    // pixel locations in total over all brackets
+  int samples = 1000;   // pixel locations in total over all brackets
   uint64_t seed = 1;    // sample selection is deterministic for a seed
   int threads = 2;
   // For comparison only (docs/hdr.md): take samples on a plain regular grid, as OpenCV's
@@ -83,11 +83,31 @@ enum class MergeWeighting {
   kHat,     // Debevec-Malik's hat w(z): symmetric, treats dark and bright levels alike
   kPhoton,  // hat(z) * exp(g(z)): inverse variance under photon (shot) noise, where a frame's
             // relative noise falls as 1/sqrt(exposure): longer exposures count more
+  kNoise,   // inverse variance under a noise model fitted to the bracket itself (FitNoise):
+            // quantisation through the slope of g, shot and read noise; kPhoton when the
+            // bracket holds too few pixels recorded by two neighbouring frames to fit it
 };
+
+// Variance of one frame's estimate of ln E at level z, per channel:
+//   v(z) = quant * g'(z)^2 + shot * exp(-G) + read * exp(-2 G),   G = g(z) - g(mid),
+// the three terms of quantisation (g' per level), shot noise and read noise. Fitted by
+// non-negative least squares to the squared differences of neighbouring frames' estimates
+// of the same pixel (each difference has variance v(z_j) + v(z_j+1)).
+struct NoiseModel {
+  std::array<double, 3> quant{}, shot{}, read{};  // per channel B, G, R
+  std::array<int64_t, 3> pairs{};                 // pixel pairs the fit used
+  bool ok = false;
+  double Variance(const ResponseCurve& r, int c, int z) const;
+};
+// "hat" | "photon" | "noise".
+Result<MergeWeighting> ParseMergeWeighting(const std::string& name);
+
+NoiseModel FitNoise(std::span<const LdrFrame> frames, const ResponseCurve& response,
+                    std::array<int, 3> black_level, std::array<int, 3> saturation_level);
 
 struct MergeOptions {
   int threads = 2;
-  MergeWeighting weighting = MergeWeighting::kPhoton;
+  MergeWeighting weighting = MergeWeighting::kNoise;
   // Per channel (B, G, R) levels at or below which a sample counts as black, and at or above
   // which it counts as saturated; -1: the ends of the range (0 and levels-1). The hat weight
   // is zero at and beyond both.

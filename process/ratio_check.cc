@@ -73,8 +73,11 @@ std::string RatioCheckResult::Csv() const {
 Result<RatioCheckResult> CheckPixelRatios(std::span<const LdrFrame> frames,
                                           const ResponseCurve& response,
                                           const RatioCheckOptions& o) {
+  // The merge only guides the choice of the two pixels (each frame's radiance below is its
+  // own): the plain photon weighting, no noise model fitted.
   MergeOptions mo;
   mo.max_unrecorded_fraction = 1.0;
+  mo.weighting = MergeWeighting::kPhoton;
   RIG_ASSIGN_OR_RETURN(RadianceMap map, MergeBracket(frames, response, mo));
   const cv::Rect bounds(0, 0, map.radiance.cols, map.radiance.rows);
   RatioCheckResult r;

@@ -196,6 +196,7 @@ void HdrStage::Merge(BracketJob& job) {
   auto t0 = std::chrono::steady_clock::now();
   MergeOptions mo;
   mo.threads = config_.process.threads;
+  mo.weighting = *ParseMergeWeighting(config_.process.merge_weighting);  // validated on load
   auto map = MergeBracket(*bracket, *response_, mo);
   summary_.merge_s += SecondsSince(t0);
   if (!map.ok()) {

@@ -33,6 +33,11 @@ int RunHdr(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   app.add_option("--threads", threads, "threads for decoding, merging and writing")
       ->check(CLI::Range(1, 64));
+  std::string weighting = "noise";
+  app.add_option("--weighting", weighting,
+                 "merge weights: hat (Debevec-Malik), photon (hat x exposure), noise (inverse "
+                 "variance under a noise model fitted to the bracket)")
+      ->check(CLI::IsMember({"hat", "photon", "noise"}));
   app.add_option("--pixel-type", pixel_type, "EXR pixel type")
       ->check(CLI::IsMember({"half", "float"}));
   app.add_option("--max-unrecorded", mo.max_unrecorded_fraction,
@@ -57,6 +62,7 @@ int RunHdr(int argc, char** argv) {
     extra[a.substr(0, eq)] = a.substr(eq + 1);
   }
   ro.threads = mo.threads = threads;
+  mo.weighting = *ParseMergeWeighting(weighting);
   using Clock = std::chrono::steady_clock;
   auto since = [](Clock::time_point t) {
     return std::chrono::duration<double>(Clock::now() - t).count();

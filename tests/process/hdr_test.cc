@@ -119,6 +119,53 @@ TEST(RadianceMerge, RecoversTheTrueRadianceAndBeatsOpenCvByFiveTimesOnTheSameBra
   EXPECT_LT(5 * ours, opencv);
 }
 
+// The bracket's own noise, fitted from neighbouring frames, against the noise it was rendered
+// with: through the true response g(z) = ln X, a frame's log-radiance variance is
+// shot * X / X^2 + read^2 / X^2 + g'^2 / 12 (8-bit quantisation), i.e. in NoiseModel's terms
+// shot e^-g_mid, read^2 e^-2 g_mid and 1/12.
+TEST(NoiseModel, FittedFromTheBracketItselfMatchesTheNoiseItWasRenderedWith) {
+  const double shot = 5e-5, read = 2.5e-4;
+  cv::Mat truth = synth::SyntheticRadiance(400, 300);
+  const Bracket b = synth::RenderBracket(truth, synth::ExposuresFor(1e-2, 300.0, 10), Response(), 5, shot, read);
+  ResponseCurve g;
+  for (int c = 0; c < 3; ++c)
+    for (int z = 0; z < 256; ++z) g.log_exposure[c].push_back(Response().TrueG(c, std::max(z, 1)));
+  const NoiseModel m = FitNoise(b, g, {-1, -1, -1}, {-1, -1, -1});
+  ASSERT_TRUE(m.ok);
+  // The three terms are nearly collinear over a filmic curve (the fit may trade one for
+  // another); what the weights use is their sum, the variance of each level.
+  for (int c = 0; c < 3; ++c) {
+    const auto& gc = g.log_exposure[c];
+    double worst = 0;
+    int worst_z = 0;
+    for (int z = 16; z <= 240; ++z) {
+      const double slope = 0.5 * (gc[z + 1] - gc[z - 1]), x = std::exp(gc[z]);
+      const double truth_v = slope * slope / 12 + (shot * x + read * read) / (x * x);
+      const double dev = std::abs(m.Variance(g, c, z) / truth_v - 1);
+      if (dev > worst) worst = dev, worst_z = z;
+    }
+    std::printf("channel %c: variance per level within %.0f%% of the truth over 16..240 (worst at %d), "
+                "%lld pairs\n", "BGR"[c], 100 * worst, worst_z, static_cast<long long>(m.pairs[c]));
+    EXPECT_LT(worst, 0.15) << "BGR"[c];
+    EXPECT_GT(m.pairs[c], 10000);
+  }
+  // Weighted by it, the merge through the true response beats the photon weighting's.
+  MergeOptions photon, fitted;
+  photon.max_unrecorded_fraction = fitted.max_unrecorded_fraction = 1.0;
+  photon.weighting = MergeWeighting::kPhoton;
+  fitted.weighting = MergeWeighting::kNoise;
+  auto a = MergeBracket(b, g, photon);
+  auto n = MergeBracket(b, g, fitted);
+  ASSERT_TRUE(a.ok() && n.ok());
+  const double ea = synth::LogRmsError(a->radiance, truth, b), en = synth::LogRmsError(n->radiance, truth, b);
+  std::printf("through the true response: photon weights %.4f, fitted noise %.4f\n", ea, en);
+  EXPECT_LT(en, 0.97 * ea);
+  EXPECT_THAT(n->attributes.at("merge_weighting"), HasSubstr("inverse variance"));
+  // Too little to fit (two frames that share no well-recorded pixel): the photon weighting.
+  const Bracket apart = synth::RenderBracket(truth, {1e-3, 1e3}, Response(), 5);
+  EXPECT_FALSE(FitNoise(apart, g, {-1, -1, -1}, {-1, -1, -1}).ok);
+}
+
 TEST(RadianceMerge, TheVectorAndScalarPathsGiveTheSameRadiance) {
   const Scene s = MakeScene(5, 1, 203, 61);  // a width that leaves a scalar tail
   const ResponseCurve r = Recover(s.bracket);

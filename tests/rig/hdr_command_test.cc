@@ -77,6 +77,15 @@ TEST_F(HdrCommands, MergesAListWithRelativePathsIntoAnExrWithItsHeader) {
   const double rel = cv::norm(*mine * k, *session, cv::NORM_L2) / cv::norm(*session, cv::NORM_L2);
   std::printf("rig hdr vs the session's radiance map: relative RMS difference %.4f\n", rel);
   EXPECT_LT(rel, 0.05);
+  // The weighting is recorded in the header: by default the fitted noise model, with its terms.
+  EXPECT_THAT(img->attributes.at("merge_weighting"), HasSubstr("inverse variance"));
+  const std::string hat = *dir_ + "/hat.exr";
+  auto h = RunRig("hdr --list " + WriteList("ok") + " --out " + hat + " --weighting hat");
+  ASSERT_EQ(h.status, 0) << h.output;
+  auto hat_img = ReadExr(hat);
+  ASSERT_TRUE(hat_img.ok());
+  EXPECT_EQ(hat_img->attributes.at("merge_weighting"), "hat");
+  EXPECT_EQ(RunRig("hdr --list " + WriteList("ok") + " --out " + hat + " --weighting best").status, 2);
 }
 
 TEST_F(HdrCommands, BadListsFailWithExitTwoNamingTheFile) {
