@@ -68,66 +68,65 @@ void EnsureGlobalThreads(int threads) {
 
 }  // namespace
 
-Status WriteExr(const std::string& path, const ExrImage& image, ExrPixelType type,
-                int threads) {
-  if (image.width <= 0 || image.height <= 0) {
-    return MakeError(ErrorCode::kInvalidInput, path, "cannot write an empty image ({}x{})",
-                     image.width, image.height);
+Status WriteExrStriped(const std::string& path, int width, int height,
+                       const std::vector<std::string>& channel_names,
+                       const std::map<std::string, std::string>& attributes, ExrPixelType type,
+                       int threads, const ExrStripeFill& fill) {
+  if (width <= 0 || height <= 0) {
+    return MakeError(ErrorCode::kInvalidInput, path, "cannot write an empty image ({}x{})", width,
+                     height);
   }
-  if (image.channel_names.size() != image.channels.size() || image.channels.empty()) {
-    return MakeError(ErrorCode::kInvalidInput, path,
-                     "{} channel names for {} channels (need at least one, one name each)",
-                     image.channel_names.size(), image.channels.size());
+  if (channel_names.empty()) {
+    return MakeError(ErrorCode::kInvalidInput, path, "no channels to write");
   }
-  std::vector<cv::Mat> continuous(image.channels.size());
-  for (size_t i = 0; i < image.channels.size(); ++i) {
-    const cv::Mat& c = image.channels[i];
-    if (c.type() != CV_32FC1 || c.cols != image.width || c.rows != image.height) {
-      return MakeError(ErrorCode::kInvalidInput, path,
-                       "channel '{}' must be CV_32FC1 {}x{} (is type {} {}x{})",
-                       image.channel_names[i], image.width, image.height, c.type(), c.cols,
-                       c.rows);
-    }
-    continuous[i] = c.isContinuous() ? c : c.clone();
-  }
-
   const std::string tmp = TempPathFor(path);
   try {
     threads = std::max(threads, 1);
     EnsureGlobalThreads(threads);
     // ZIP on 16-line blocks: blocks compress independently, so OpenEXR spreads them over the
     // thread pool; ZIPS (one line per block) compresses worse and is not faster.
-    Imf::Header header(image.width, image.height, 1.0f, Imath::V2f(0, 0), 1.0f,
-                       Imf::INCREASING_Y, Imf::ZIP_COMPRESSION);
+    Imf::Header header(width, height, 1.0f, Imath::V2f(0, 0), 1.0f, Imf::INCREASING_Y,
+                       Imf::ZIP_COMPRESSION);
     const Imf::PixelType pixel = type == ExrPixelType::kHalf ? Imf::HALF : Imf::FLOAT;
-    for (const auto& name : image.channel_names) {
-      header.channels().insert(name, Imf::Channel(pixel));
-    }
-    for (const auto& [key, value] : image.attributes) {
+    for (const auto& name : channel_names) header.channels().insert(name, Imf::Channel(pixel));
+    for (const auto& [key, value] : attributes) {
       if (IsStandardAttribute(key)) {
         return MakeError(ErrorCode::kInvalidInput, path,
                          "attribute name '{}' is reserved by OpenEXR", key);
       }
       header.insert(key, Imf::StringAttribute(value));
     }
-    Imf::FrameBuffer fb;
-    const size_t elem = type == ExrPixelType::kHalf ? 2 : sizeof(float);
-    for (size_t i = 0; i < continuous.size(); ++i) {
-      // OpenEXR does not convert float to half on output: OpenCV's CV_16F has the same IEEE
-      // binary16 layout as Imath's half, and converts with SIMD.
-      if (type == ExrPixelType::kHalf) {
-        cv::Mat h;
-        continuous[i].convertTo(h, CV_16F);
-        continuous[i] = h;
-      }
-      fb.insert(image.channel_names[i],
-                Imf::Slice(pixel, reinterpret_cast<char*>(continuous[i].data), elem,
-                           elem * image.width));
-    }
+    // Stripes of 64 lines (four ZIP blocks, compressed in parallel), interleaved, in two
+    // buffers reused for every stripe: no image-sized temporaries (fresh memory costs a page
+    // fault per 4 KiB, which on a virtual machine is most of a write's time). OpenEXR does not
+    // convert float to half on output: OpenCV's CV_16F has the same IEEE binary16 layout as
+    // Imath's half, and converts with SIMD.
+    constexpr int kStripe = 64;
+    const int nch = static_cast<int>(channel_names.size());
+    const int row = width * nch;
+    cv::Mat stripe_f(kStripe, row, CV_32F), stripe_h;
+    if (type == ExrPixelType::kHalf) stripe_h.create(kStripe, row, CV_16F);
+    const cv::Mat& buffer = type == ExrPixelType::kHalf ? stripe_h : stripe_f;
+    const size_t elem = buffer.elemSize();
     {
       Imf::OutputFile out(tmp.c_str(), header, threads);
-      out.setFrameBuffer(fb);
-      out.writePixels(image.height);
+      for (int y0 = 0; y0 < height; y0 += kStripe) {
+        const int y1 = std::min(height, y0 + kStripe);
+        fill(y0, y1, stripe_f.ptr<float>());
+        if (type == ExrPixelType::kHalf) {
+          stripe_f.rowRange(0, y1 - y0).convertTo(stripe_h.rowRange(0, y1 - y0), CV_16F);
+        }
+        // OpenEXR addresses (x, y) as base + x * xStride + y * yStride: the base is set so that
+        // line y0 lands on the stripe's first row.
+        char* base = const_cast<char*>(reinterpret_cast<const char*>(buffer.data)) -
+                     static_cast<ptrdiff_t>(y0) * static_cast<ptrdiff_t>(buffer.step[0]);
+        Imf::FrameBuffer fb;
+        for (int i = 0; i < nch; ++i) {
+          fb.insert(channel_names[i], Imf::Slice(pixel, base + i * elem, nch * elem, buffer.step[0]));
+        }
+        out.setFrameBuffer(fb);
+        out.writePixels(y1 - y0);
+      }
     }
     SyncFile(tmp);
     std::error_code ec;
@@ -147,6 +146,39 @@ Status WriteExr(const std::string& path, const ExrImage& image, ExrPixelType typ
     return MakeError(ErrorCode::kIo, path, "cannot write EXR: {}", e.what());
   }
   return Ok();
+}
+
+Status WriteExr(const std::string& path, const ExrImage& image, ExrPixelType type,
+                int threads) {
+  if (image.width <= 0 || image.height <= 0) {
+    return MakeError(ErrorCode::kInvalidInput, path, "cannot write an empty image ({}x{})",
+                     image.width, image.height);
+  }
+  if (image.channel_names.size() != image.channels.size() || image.channels.empty()) {
+    return MakeError(ErrorCode::kInvalidInput, path,
+                     "{} channel names for {} channels (need at least one, one name each)",
+                     image.channel_names.size(), image.channels.size());
+  }
+  for (size_t i = 0; i < image.channels.size(); ++i) {
+    const cv::Mat& c = image.channels[i];
+    if (c.type() != CV_32FC1 || c.cols != image.width || c.rows != image.height) {
+      return MakeError(ErrorCode::kInvalidInput, path,
+                       "channel '{}' must be CV_32FC1 {}x{} (is type {} {}x{})",
+                       image.channel_names[i], image.width, image.height, c.type(), c.cols,
+                       c.rows);
+    }
+  }
+  const int nch = static_cast<int>(image.channels.size());
+  return WriteExrStriped(path, image.width, image.height, image.channel_names, image.attributes,
+                         type, threads, [&](int y0, int y1, float* out) {
+                           for (int y = y0; y < y1; ++y) {
+                             float* o = out + size_t(y - y0) * image.width * nch;
+                             for (int i = 0; i < nch; ++i) {
+                               const float* src = image.channels[i].ptr<float>(y);
+                               for (int x = 0; x < image.width; ++x) o[x * nch + i] = src[x];
+                             }
+                           }
+                         });
 }
 
 Result<ExrImage> ReadExr(const std::string& path, int threads) {

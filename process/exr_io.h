@@ -2,6 +2,7 @@
 // so that metadata (pose, exposures, response id, basis, order ...) travels with pixels.
 #pragma once
 
+#include <functional>
 #include <map>
 #include <string>
 #include <vector>
@@ -26,6 +27,15 @@ struct ExrImage {
 Status WriteExr(const std::string& path, const ExrImage& image,
                 ExrPixelType type = ExrPixelType::kFloat, int threads = 2);
 Result<ExrImage> ReadExr(const std::string& path, int threads = 2);
+
+// The same, for images that are not held as float planes: `fill(y0, y1, out)` writes rows
+// [y0, y1) of every channel, interleaved, as float (out[(y - y0) * width * n + x * n + i]).
+// The file is written in stripes of a few lines through one small reused buffer.
+using ExrStripeFill = std::function<void(int y0, int y1, float* out)>;
+Status WriteExrStriped(const std::string& path, int width, int height,
+                       const std::vector<std::string>& channel_names,
+                       const std::map<std::string, std::string>& attributes, ExrPixelType type,
+                       int threads, const ExrStripeFill& fill);
 
 // Convenience for radiance maps: a CV_32FC3 image in OpenCV's BGR order <-> channels R, G, B.
 Status WriteRgbExr(const std::string& path, const cv::Mat& bgr,

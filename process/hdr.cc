@@ -940,24 +940,31 @@ Status WriteRadianceMap(const std::string& path, const RadianceMap& map, ExrPixe
   if (map.radiance.type() != CV_32FC3 || map.radiance.empty()) {
     return MakeError(ErrorCode::kInvalidInput, path, "radiance must be a non-empty CV_32FC3");
   }
-  ExrImage image;
-  image.width = map.radiance.cols;
-  image.height = map.radiance.rows;
-  std::vector<cv::Mat> planes;
-  cv::split(map.radiance, planes);
-  image.channel_names = {"B", "G", "R"};
-  image.channels = planes;
-  if (!map.flags.empty()) {
-    if (map.flags.type() != CV_8UC1 || map.flags.size() != map.radiance.size()) {
-      return MakeError(ErrorCode::kInvalidInput, path, "flags must be CV_8UC1 of the map's size");
-    }
-    cv::Mat f;
-    map.flags.convertTo(f, CV_32F);
-    image.channel_names.push_back("flags");
-    image.channels.push_back(f);
+  const bool flags = !map.flags.empty();
+  if (flags && (map.flags.type() != CV_8UC1 || map.flags.size() != map.radiance.size())) {
+    return MakeError(ErrorCode::kInvalidInput, path, "flags must be CV_8UC1 of the map's size");
   }
-  image.attributes = map.attributes;
-  return WriteExr(path, image, type, threads);
+  std::vector<std::string> names = {"B", "G", "R"};
+  if (flags) names.push_back("flags");
+  const int width = map.radiance.cols, nch = int(names.size());
+  return WriteExrStriped(path, width, map.radiance.rows, names, map.attributes, type, threads,
+                         [&](int y0, int y1, float* out) {
+                           for (int y = y0; y < y1; ++y) {
+                             float* o = out + size_t(y - y0) * width * nch;
+                             const float* r = map.radiance.ptr<float>(y);
+                             if (!flags) {
+                               std::memcpy(o, r, sizeof(float) * 3 * width);
+                               continue;
+                             }
+                             const uint8_t* f = map.flags.ptr<uint8_t>(y);
+                             for (int x = 0; x < width; ++x) {
+                               o[4 * x] = r[3 * x];
+                               o[4 * x + 1] = r[3 * x + 1];
+                               o[4 * x + 2] = r[3 * x + 2];
+                               o[4 * x + 3] = f[x];
+                             }
+                           }
+                         });
 }
 
 Result<ExrPixelType> ParseExrPixelType(const std::string& name) {

@@ -1,6 +1,8 @@
 // Decoding camera files into BGR frames (in parallel over a bracket) and reading bracket lists.
 #include "process/image_io.h"
 
+#include <malloc.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
@@ -213,6 +215,12 @@ Result<Bracket> LoadBracketList(const std::string& list_path, int threads) {
     return MakeError(ErrorCode::kInvalidInput, list_path, "bracket list names no images");
   }
   return DecodeFrames(files, exposures, threads);
+}
+
+void ReuseFreedImageMemory() {
+  mallopt(M_MMAP_THRESHOLD, 1 << 30);
+  mallopt(M_TRIM_THRESHOLD, 1 << 30);
+  mallopt(M_TOP_PAD, 64 << 20);
 }
 
 }  // namespace rig

@@ -41,6 +41,13 @@ Result<Bracket> LoadBracketList(const std::string& list_path, int threads = 2);
 
 // Runs fn(begin, end) over [0, n) split into contiguous chunks on up to `threads` threads
 // (the calling thread takes part). fn must be thread-safe for disjoint ranges.
+// Keeps freed image-sized blocks in the process for the next image instead of returning
+// them to the system (glibc's mmap threshold raised to 1 GiB, trimming off): every fresh
+// 70 MB radiance map or decoded bracket otherwise costs a page fault per 4 KiB, which on a
+// virtual machine can take more time than the merge itself (docs/hdr.md). The resident size
+// stays at the peak instead of falling between poses.
+void ReuseFreedImageMemory();
+
 void ParallelFor(int n, int threads, const std::function<void(int begin, int end)>& fn,
                  int min_chunk = 1);
 

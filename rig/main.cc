@@ -4,6 +4,7 @@
 #include <string>
 
 #include "build_info.h"
+#include "process/image_io.h"
 #include "rig/backends.h"
 #include "rig/commands/command.h"
 
@@ -23,6 +24,7 @@ void PrintUsage(FILE* out) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  rig::ReuseFreedImageMemory();  // poses reuse the memory of the one before (docs/hdr.md)
   if (argc < 2) {
     PrintUsage(stderr);
     return 2;
