@@ -716,8 +716,8 @@ Result<MergeWeighting> ParseMergeWeighting(const std::string& name) {
   if (name == "hat") return MergeWeighting::kHat;
   if (name == "photon") return MergeWeighting::kPhoton;
   if (name == "noise") return MergeWeighting::kNoise;
-  return MakeError(ErrorCode::kInvalidInput, "", "unknown merge weighting '{}' (hat, photon or noise)",
-                   name);
+  return MakeError(ErrorCode::kInvalidInput, "merge_weighting",
+                   "unknown merge weighting '{}' (hat, photon or noise)", name);
 }
 
 Result<RadianceMap> MergeBracket(std::span<const LdrFrame> frames, const ResponseCurve& response,
