@@ -2,6 +2,7 @@
 // reflectance models (basis, fit method, order), the HDR methods (ours, OpenCV's Debevec and
 // Robertson) — with charts, the Pareto front, the automatic choice, scenes of growing
 // complexity and the stability of each method where methods fail.
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -153,22 +154,31 @@ std::vector<HdrTrial> CompareHdr(const std::string& dataset, const Bracket& b, c
     return t;
   };
   {
-    HdrTrial t = trial("ours");
+    // One recovered response, merged with each weighting: "ours" is the default (a noise model
+    // fitted to the bracket), then the photon and hat weightings; each timed as recovery + merge.
     const auto t0 = Clock::now();
     const Bracket one[1] = {b};
     ResponseOptions ro;
     auto resp = RecoverResponse(one, ro);
-    MergeOptions mo;
-    mo.max_unrecorded_fraction = 1.0;
-    Result<RadianceMap> map = resp.ok() ? MergeBracket(b, *resp, mo) : Result<RadianceMap>(resp.error());
-    t.time_s = Since(t0);
-    if (map.ok()) {
-      t.log_rms = synth::LogRmsError(map->radiance, truth, b);
-    } else {
-      t.failure = map.error().message;
-      t.log_rms = kNan;
+    const double recovery_s = Since(t0);
+    for (auto [name, weighting] : {std::pair{"ours", MergeWeighting::kNoise},
+                                   std::pair{"ours-photon", MergeWeighting::kPhoton},
+                                   std::pair{"ours-hat", MergeWeighting::kHat}}) {
+      HdrTrial t = trial(name);
+      const auto t1 = Clock::now();
+      MergeOptions mo;
+      mo.max_unrecorded_fraction = 1.0;
+      mo.weighting = weighting;
+      Result<RadianceMap> map = resp.ok() ? MergeBracket(b, *resp, mo) : Result<RadianceMap>(resp.error());
+      t.time_s = recovery_s + Since(t1);
+      if (map.ok()) {
+        t.log_rms = synth::LogRmsError(map->radiance, truth, b);
+      } else {
+        t.failure = map.error().message;
+        t.log_rms = kNan;
+      }
+      out.push_back(t);
     }
-    out.push_back(t);
   }
   try {
     HdrTrial t = trial("opencv-debevec");
@@ -244,10 +254,13 @@ std::string HdrCsv(const std::vector<HdrTrial>& trials) {
   return s;
 }
 
+const char* const kHdrMethods[] = {"ours", "ours-photon", "ours-hat", "opencv-debevec",
+                                   "opencv-robertson"};
+
 // error against `key` (exposures or noise), one line per method.
 cv::Mat HdrChart(const std::vector<HdrTrial>& trials, bool by_noise, const std::string& title) {
   std::vector<PlotSeries> series;
-  for (const char* m : {"ours", "opencv-debevec", "opencv-robertson"}) {
+  for (const char* m : kHdrMethods) {
     PlotSeries s{m, {}, {}, {}, true};
     for (const auto& t : trials) {
       if (t.method != m) continue;
@@ -267,7 +280,7 @@ cv::Mat HdrChart(const std::vector<HdrTrial>& trials, bool by_noise, const std::
 
 cv::Mat HdrSpeedChart(const std::vector<HdrTrial>& trials) {
   std::vector<PlotSeries> series;
-  for (const char* m : {"ours", "opencv-debevec", "opencv-robertson"}) {
+  for (const char* m : kHdrMethods) {
     PlotSeries s{m, {}, {}, {}, false};
     for (const auto& t : trials) {
       if (t.method != m) continue;
@@ -494,22 +507,37 @@ int RunEvaluate(int argc, char** argv) {
     return n ? s / n : kNan;
   };
   if (!hdr_main.empty()) {
-    findings += fmt::format("- HDR, mean over {} brackets: ours {:.4f} log-radiance RMS error in {:.3f} s; OpenCV Debevec {:.4f} in {:.3f} s; Robertson {:.4f} in {:.3f} s.\n",
-                            hdr_main.size() / 3, mean_of(hdr_main, "ours", &HdrTrial::log_rms), mean_of(hdr_main, "ours", &HdrTrial::time_s),
+    const auto brackets = std::count_if(hdr_main.begin(), hdr_main.end(), [](const HdrTrial& t) { return t.method == "ours"; });
+    findings += fmt::format("- HDR, mean over {} brackets: ours {:.4f} log-radiance RMS error in {:.3f} s (photon weights {:.4f}, hat weights {:.4f}); OpenCV Debevec {:.4f} in {:.3f} s; Robertson {:.4f} in {:.3f} s.\n",
+                            brackets, mean_of(hdr_main, "ours", &HdrTrial::log_rms), mean_of(hdr_main, "ours", &HdrTrial::time_s),
+                            mean_of(hdr_main, "ours-photon", &HdrTrial::log_rms), mean_of(hdr_main, "ours-hat", &HdrTrial::log_rms),
                             mean_of(hdr_main, "opencv-debevec", &HdrTrial::log_rms), mean_of(hdr_main, "opencv-debevec", &HdrTrial::time_s),
                             mean_of(hdr_main, "opencv-robertson", &HdrTrial::log_rms), mean_of(hdr_main, "opencv-robertson", &HdrTrial::time_s));
   }
   if (!hdr_exposures.empty()) {
-    auto cell = [](const HdrTrial& t) {
-      return t.failure.empty() ? fmt::format("{:.4f}", t.log_rms) : "fails (" + t.failure.substr(0, 60) + "...)";
+    // The trial of method `m` on the same bracket as `key` (same data, exposures and noise).
+    auto on_same = [](const std::vector<HdrTrial>& ts, const HdrTrial& key, const char* m) -> const HdrTrial* {
+      for (const auto& t : ts)
+        if (t.dataset == key.dataset && t.exposures == key.exposures && t.noise == key.noise && t.method == m) return &t;
+      return nullptr;
     };
-    if (hdr_exposures.size() >= 3)
-      findings += fmt::format("- With only {} exposures: ours {}, Debevec {}, Robertson {} (hdr_error_vs_exposures.png).\n",
-                              hdr_exposures[0].exposures, cell(hdr_exposures[0]), cell(hdr_exposures[1]), cell(hdr_exposures[2]));
-    const auto& n = hdr_noise;
-    if (n.size() >= 3)
-      findings += fmt::format("- At {:g}x the default noise: ours {:.4f}, Debevec {:.4f}, Robertson {:.4f} (hdr_error_vs_noise.png).\n",
-                              n[n.size() - 3].noise, n[n.size() - 3].log_rms, n[n.size() - 2].log_rms, n[n.size() - 1].log_rms);
+    auto cell = [](const HdrTrial* t) -> std::string {
+      if (!t) return "not run";
+      return t->failure.empty() ? fmt::format("{:.4f}", t->log_rms) : "fails (" + t->failure.substr(0, 60) + "...)";
+    };
+    const HdrTrial& fewest = hdr_exposures.front();
+    findings += fmt::format("- With only {} exposures: ours {}, Debevec {}, Robertson {} (hdr_error_vs_exposures.png).\n",
+                            fewest.exposures, cell(on_same(hdr_exposures, fewest, "ours")),
+                            cell(on_same(hdr_exposures, fewest, "opencv-debevec")),
+                            cell(on_same(hdr_exposures, fewest, "opencv-robertson")));
+    if (!hdr_noise.empty()) {
+      const HdrTrial& noisiest = hdr_noise.back();
+      findings += fmt::format("- At {:g}x the default noise: ours {}, photon weights {}, Debevec {}, Robertson {} (hdr_error_vs_noise.png).\n",
+                              noisiest.noise, cell(on_same(hdr_noise, noisiest, "ours")),
+                              cell(on_same(hdr_noise, noisiest, "ours-photon")),
+                              cell(on_same(hdr_noise, noisiest, "opencv-debevec")),
+                              cell(on_same(hdr_noise, noisiest, "opencv-robertson")));
+    }
   }
 
   std::string report = fmt::format("# Evaluation: speed against accuracy\n\nData: {}{} ({} poses, {}x{}). Made by `rig evaluate` in {:.0f} s.\n\n## Findings\n\n{}\n",
