@@ -181,6 +181,24 @@ Status WriteExr(const std::string& path, const ExrImage& image, ExrPixelType typ
                          });
 }
 
+Result<std::map<std::string, std::string>> ReadExrAttributes(const std::string& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) return MakeError(ErrorCode::kNotFound, path, "no such file");
+  try {
+    Imf::InputFile in(path.c_str(), 1);
+    std::map<std::string, std::string> out;
+    for (auto it = in.header().begin(); it != in.header().end(); ++it) {
+      if (IsStandardAttribute(it.name())) continue;
+      if (const auto* s = dynamic_cast<const Imf::StringAttribute*>(&it.attribute())) {
+        out[it.name()] = s->value();
+      }
+    }
+    return out;
+  } catch (const std::exception& e) {
+    return MakeError(ErrorCode::kCorrupt, path, "cannot read EXR header: {}", e.what());
+  }
+}
+
 Result<ExrImage> ReadExr(const std::string& path, int threads) {
   std::error_code ec;
   if (!fs::exists(path, ec)) {

@@ -27,6 +27,8 @@ struct ExrImage {
 Status WriteExr(const std::string& path, const ExrImage& image,
                 ExrPixelType type = ExrPixelType::kFloat, int threads = 2);
 Result<ExrImage> ReadExr(const std::string& path, int threads = 2);
+// The string attributes of the header alone (no pixels read).
+Result<std::map<std::string, std::string>> ReadExrAttributes(const std::string& path);
 
 // The same, for images that are not held as float planes: `fill(y0, y1, out)` writes rows
 // [y0, y1) of every channel, interleaved, as float (out[(y - y0) * width * n + x * n + i]).

@@ -713,6 +713,15 @@ NoiseModel FitNoise(std::span<const LdrFrame> frames, const ResponseCurve& respo
   return m;
 }
 
+const char* MergeWeightingName(MergeWeighting w) {
+  switch (w) {
+    case MergeWeighting::kHat: return "hat";
+    case MergeWeighting::kPhoton: return "photon";
+    case MergeWeighting::kNoise: return "noise";
+  }
+  return "?";
+}
+
 Result<MergeWeighting> ParseMergeWeighting(const std::string& name) {
   if (name == "hat") return MergeWeighting::kHat;
   if (name == "photon") return MergeWeighting::kPhoton;
@@ -922,6 +931,9 @@ Result<RadianceMap> MergeBracket(std::span<const LdrFrame> frames, const Respons
       "exposure); 2 a channel black in every exposure (holds 0)";
   map.attributes["saturated_pixels"] = std::to_string(map.saturated_pixels);
   map.attributes["black_pixels"] = std::to_string(map.black_pixels);
+  // The weighting asked for (what `rig process` compares to decide a map is up to date), and
+  // below it, the one used with its fitted terms.
+  map.attributes["merge_weighting_option"] = MergeWeightingName(o.weighting);
   if (noise.ok) {
     map.attributes["merge_weighting"] = fmt::format(
         "inverse variance, fitted per channel B,G,R: quantisation {:.3g},{:.3g},{:.3g} x g'^2; "

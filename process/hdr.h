@@ -101,6 +101,7 @@ struct NoiseModel {
 };
 // "hat" | "photon" | "noise".
 Result<MergeWeighting> ParseMergeWeighting(const std::string& name);
+const char* MergeWeightingName(MergeWeighting w);
 
 NoiseModel FitNoise(std::span<const LdrFrame> frames, const ResponseCurve& response,
                     std::array<int, 3> black_level, std::array<int, 3> saturation_level);

@@ -6,6 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "config/log.h"
+#include "process/exr_io.h"
 #include "process/image_io.h"
 
 namespace rig {
@@ -182,6 +183,12 @@ void HdrStage::Merge(BracketJob& job) {
     auto t_out = fs::last_write_time(out);
     bool fresh = !fs::exists(ResponsePath(layout_)) || fs::last_write_time(ResponsePath(layout_)) <= t_out;
     for (const auto& f : job.files) fresh = fresh && fs::exists(f) && fs::last_write_time(f) <= t_out;
+    // A map merged with another weighting (or before the weighting was recorded) is stale.
+    if (fresh) {
+      auto attributes = ReadExrAttributes(out.string());
+      fresh = attributes.ok() && attributes->count("merge_weighting_option") &&
+              attributes->at("merge_weighting_option") == config_.process.merge_weighting;
+    }
     if (fresh) {
       ++summary_.skipped_up_to_date;
       return;

@@ -77,9 +77,17 @@ Status WriteFileAtomic(const fs::path& path, std::span<const uint8_t> bytes, boo
   if (ec) return MakeError(ErrorCode::kIo, dir.string(), "cannot create folder: {}", ec.message());
   if (!overwrite && fs::exists(path))
     return MakeError(ErrorCode::kIo, path.string(), "refusing to overwrite an existing file");
+  // A fresh name each time: the process id in it (a forked child inherits this generator's
+  // state and would otherwise repeat its parent's names), and another name when one is taken
+  // (a temporary left by a writer that was killed).
   static thread_local std::mt19937_64 rng{std::random_device{}()};
-  fs::path tmp = dir / fmt::format(".{}.tmp{:016x}", path.filename().string(), rng());
-  int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  fs::path tmp;
+  int fd = -1;
+  for (int attempt = 0; attempt < 16 && fd < 0; ++attempt) {
+    tmp = dir / fmt::format(".{}.tmp{}.{:016x}", path.filename().string(), ::getpid(), rng());
+    fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+    if (fd < 0 && errno != EEXIST) break;
+  }
   if (fd < 0) return Errno(tmp, "cannot create temporary file");
   Status st = WriteAll(fd, bytes.data(), bytes.size(), tmp);
   if (st.ok() && ::fsync(fd) != 0) st = Errno(tmp, "fsync failed");
@@ -295,6 +303,21 @@ Result<Session> Session::OpenExisting(const fs::path& dir) {
   RIG_ASSIGN_OR_RETURN(Journal journal, Journal::Open(layout.journal()));
   if (!AddLogFile(layout.log().string()))
     Log("session")->warn("cannot open {}; logging to the console only", layout.log().string());
+  // Temporaries of writers that were killed (".<name>.tmp..."): never anything's only copy —
+  // a file exists under its own name only once complete — and nobody else writes here while
+  // the lock is held.
+  int stale = 0;
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::recursive_directory_iterator();
+       it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.size() > 1 && name[0] == '.' && name.find(".tmp") != std::string::npos &&
+        it->is_regular_file(ec)) {
+      std::error_code rm;
+      if (fs::remove(it->path(), rm)) ++stale;
+    }
+  }
+  if (stale > 0) Log("session")->info("removed {} unfinished temporary file(s) of an interrupted run", stale);
   return Session(layout, cr.config, std::move(lock), std::move(journal), std::move(history));
 }
 

@@ -117,31 +117,31 @@ TEST(CaptureSession, SigkillAtRandomMomentsThenResumeGivesEveryFrameExactlyOnce)
   fs::path session = fs::path(dir) / "S";
   std::string log = dir + "/log.txt";
   std::mt19937 rng(7);
-  // Measure how long an uninterrupted run takes, and how much of it is the program starting
-  // (until session.toml exists), to spread the kills over the capture itself: on a loaded
-  // machine the start alone can outlast a fixed window.
-  auto t0 = std::chrono::steady_clock::now();
-  const fs::path probe = fs::path(dir) / "T";
-  pid_t pid = testing::SpawnRig({"capture", "--config", cfg, "--out", probe.string(), "--dry-run",
-                                 "--no-progress", "--no-process"}, log);
-  while (!fs::exists(probe / "session.toml") &&
-         std::chrono::steady_clock::now() - t0 < std::chrono::seconds(30))
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  const double start_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  ASSERT_EQ(testing::WaitRig(pid), 0);
-  double full_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-
+  // Kills are placed by progress, not by the clock (a loaded machine can spend longer starting
+  // than a fixed window lasts, and an idle one can finish inside it): each round lets the
+  // journal grow by a random 1..20 frames, then kills at a random moment within about one
+  // frame's time after that.
+  auto frames_journaled = [&] {
+    std::ifstream in(session / "journal.jsonl");
+    std::string line;
+    int n = 0;
+    while (std::getline(in, line)) n += line.find("\"event\":\"frame\"") != std::string::npos;
+    return n;
+  };
   int kills = 0;
   bool first = true;
-  for (int round = 0; round < 40; ++round) {
+  for (int round = 0; round < 60; ++round) {
     std::vector<std::string> args =
         first ? std::vector<std::string>{"capture", "--config", cfg, "--out", session.string(),
                                          "--dry-run", "--no-progress", "--no-process"}
               : std::vector<std::string>{"resume", session.string(), "--no-progress", "--no-process"};
-    pid = testing::SpawnRig(args, log);
-    double wait_s =
-        start_s + std::uniform_real_distribution<double>(0.01, std::max(0.05, (full_s - start_s) / 4))(rng);
-    std::this_thread::sleep_for(std::chrono::duration<double>(wait_s));
+    const int target = frames_journaled() + std::uniform_int_distribution<int>(1, 20)(rng);
+    const auto t0 = std::chrono::steady_clock::now();
+    pid_t pid = testing::SpawnRig(args, log);
+    while (frames_journaled() < std::min(target, 160) &&
+           std::chrono::steady_clock::now() - t0 < std::chrono::seconds(30))
+      std::this_thread::sleep_for(std::chrono::microseconds(500));
+    std::this_thread::sleep_for(std::chrono::microseconds(std::uniform_int_distribution<int>(0, 3000)(rng)));
     int killed = kill(pid, SIGKILL) == 0;
     int status = testing::WaitRig(pid);
     if (fs::exists(session / "session.toml")) first = false;
@@ -153,6 +153,11 @@ TEST(CaptureSession, SigkillAtRandomMomentsThenResumeGivesEveryFrameExactlyOnce)
   CommandResult last = RunRig("resume " + session.string() + " --no-progress");
   ASSERT_EQ(last.status, 0) << last.output;
   EXPECT_GE(kills, 4);
+  // No temporaries of the killed writers are left behind.
+  for (const auto& e : fs::recursive_directory_iterator(session)) {
+    const std::string name = e.path().filename().string();
+    EXPECT_FALSE(name[0] == '.' && name.find(".tmp") != std::string::npos) << e.path();
+  }
   ExpectCompleteAndConsistent(session, 40, 4);
 }
 

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <fstream>
 #include <regex>
+#include <sstream>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -87,6 +88,24 @@ TEST_F(ProcessCommand, UpToDateMapsAreSkippedUnlessForced) {
   ASSERT_EQ(one.status, 0) << one.output;
   EXPECT_THAT(one.output, HasSubstr("1 merged, 39 up to date"));
   EXPECT_TRUE(fs::exists(s / "hdr" / "h020_v10.exr"));
+  // Another merge weighting in session.toml: every map is stale, and records the new one.
+  {
+    std::ifstream in(s / "session.toml");
+    std::stringstream text;
+    text << in.rdbuf();
+    std::string toml = text.str();
+    const size_t at = toml.find("merge_weighting = 'noise'");
+    ASSERT_NE(at, std::string::npos) << toml;
+    toml.replace(at, std::string("merge_weighting = 'noise'").size(), "merge_weighting = 'hat'");
+    std::ofstream(s / "session.toml") << toml;
+  }
+  auto reweighted = RunRig("process " + s.string() + " --hdr-only");
+  ASSERT_EQ(reweighted.status, 0) << reweighted.output;
+  EXPECT_THAT(reweighted.output, HasSubstr("40 merged, 0 up to date"));
+  auto header = ReadExrAttributes((s / "hdr" / "h020_v10.exr").string());
+  ASSERT_TRUE(header.ok());
+  EXPECT_EQ(header->at("merge_weighting_option"), "hat");
+  EXPECT_EQ(header->at("merge_weighting"), "hat");
   auto forced = RunRig("process " + s.string() + " --hdr-only --force");
   ASSERT_EQ(forced.status, 0) << forced.output;
   EXPECT_THAT(forced.output, HasSubstr("40 merged, 0 up to date"));

@@ -99,30 +99,52 @@ TEST(AtomicWrite, KilledWriterNeverLeavesAPartialFileUnderTheFinalName) {
   fs::path target = dir / "big.bin";
   const size_t kSize = 8 << 20;
   auto content = [&](int version) { return std::string(kSize, static_cast<char>('A' + version % 26)); };
-  // Kill moments spread over 0.1..3 times one write's duration on this machine (a loaded
-  // disk makes a write take anything from milliseconds to a second).
-  const auto t0 = std::chrono::steady_clock::now();
   ASSERT_TRUE(WriteFileAtomic(target, content(0)).ok());
-  const auto one_write = std::chrono::duration_cast<std::chrono::microseconds>(
-      std::chrono::steady_clock::now() - t0);
+  // Kills are placed by the writer's progress, not by the clock (a write takes milliseconds on
+  // an idle disk and most of a second on a loaded one): the child reports each finished write
+  // on a pipe; each round waits for 0..2 of them, then kills at a random moment within about
+  // one write's time — inside a write, between two, or during the rename.
   std::mt19937 rng(42);
   int observed_versions = 0;
   for (int round = 0; round < 12; ++round) {
+    int done[2];
+    ASSERT_EQ(pipe(done), 0);
     pid_t pid = fork();
     ASSERT_GE(pid, 0);
     if (pid == 0) {
-      for (int v = 1;; ++v) {
+      close(done[0]);
+      for (int v = 1 + round * 3;; ++v) {
         if (!WriteFileAtomic(target, content(v)).ok()) _exit(3);
+        if (write(done[1], "w", 1) != 1) _exit(4);
       }
     }
-    std::this_thread::sleep_for(one_write / 10 + one_write * int(rng() % 290) / 100);
+    close(done[1]);
+    const int wait_for = static_cast<int>(rng() % 3);
+    auto last = std::chrono::steady_clock::now();
+    auto one_write = std::chrono::microseconds(20000);
+    for (int k = 0; k < wait_for; ++k) {
+      char c;
+      if (read(done[0], &c, 1) != 1) {
+        int st = 0;
+        waitpid(pid, &st, 0);
+        FAIL() << "round " << round << ": the writer stopped (exit " << WEXITSTATUS(st) << ")";
+      }
+      const auto now = std::chrono::steady_clock::now();
+      one_write = std::chrono::duration_cast<std::chrono::microseconds>(now - last);
+      last = now;
+    }
+    std::this_thread::sleep_for(one_write * static_cast<int>(rng() % 100) / 100);
     kill(pid, SIGKILL);
     int status = 0;
     waitpid(pid, &status, 0);
+    close(done[0]);
     std::string now = Slurp(target);
     ASSERT_EQ(now.size(), kSize) << "round " << round;
     EXPECT_EQ(now.find_first_not_of(now[0]), std::string::npos) << "mixed content, round " << round;
-    if (now[0] != 'A') ++observed_versions;
+    if (wait_for > 0) {
+      ++observed_versions;
+      EXPECT_NE(now[0], 'A') << "round " << round << ": a finished write is not under the final name";
+    }
   }
   EXPECT_GT(observed_versions, 0);  // the writer did replace the file in some rounds
 }
