@@ -98,7 +98,10 @@ TEST(AtomicWrite, KilledWriterNeverLeavesAPartialFileUnderTheFinalName) {
   fs::path dir = TempDir("atomic");
   fs::path target = dir / "big.bin";
   const size_t kSize = 8 << 20;
-  auto content = [&](int version) { return std::string(kSize, static_cast<char>('A' + version % 26)); };
+  // Version 0 is all 'A'; every later version one of 'B'..'Z', never 'A' again.
+  auto content = [&](int version) {
+    return std::string(kSize, static_cast<char>(version == 0 ? 'A' : 'B' + version % 25));
+  };
   ASSERT_TRUE(WriteFileAtomic(target, content(0)).ok());
   // Kills are placed by the writer's progress, not by the clock (a write takes milliseconds on
   // an idle disk and most of a second on a loaded one): the child reports each finished write
