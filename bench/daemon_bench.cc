@@ -20,8 +20,8 @@
 #include "config/config.h"
 #include "config/log.h"
 #include "rig/backends.h"
-#include "rig/daemon.h"
-#include "rig/session_store.h"
+#include "capture/daemon/daemon.h"
+#include "capture/session/session_store.h"
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;

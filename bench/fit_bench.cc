@@ -22,9 +22,9 @@
 #include <opencv2/core.hpp>
 
 #include "config/log.h"
-#include "process/exr_io.h"
-#include "process/fit.h"
-#include "process/model_stream.h"
+#include "process/io/exr_io.h"
+#include "process/model/fit.h"
+#include "process/model/model_stream.h"
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;

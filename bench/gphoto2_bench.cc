@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "capture/gphoto2_camera.h"
+#include "capture/devices/gphoto2_camera.h"
 #include "config/log.h"
 
 int main(int argc, char** argv) {

@@ -18,11 +18,11 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/photo.hpp>
 
-#include "process/exr_io.h"
-#include "process/hdr.h"
-#include "process/image_io.h"
+#include "process/io/exr_io.h"
+#include "process/hdr/hdr.h"
+#include "process/io/image_io.h"
 #include "config/config.h"
-#include "process/light_direction.h"
+#include "process/model/light_direction.h"
 #include "sim/bracket_synth.h"
 #include "sim/sim_camera.h"
 #include "sim/world.h"

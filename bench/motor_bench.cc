@@ -14,9 +14,9 @@
 #include <vector>
 
 #include "config/log.h"
-#include "rig/grbl_motor.h"
-#include "rig/maestro_motor.h"
-#include "rig/pose.h"
+#include "capture/devices/grbl_motor.h"
+#include "capture/devices/maestro_motor.h"
+#include "capture/plan/pose.h"
 #include "sim/grbl_emulator.h"
 #include "sim/maestro_emulator.h"
 #include "tests/support/pty_shim.h"

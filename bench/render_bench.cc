@@ -13,7 +13,7 @@
 
 #include <opencv2/core.hpp>
 
-#include "process/model.h"
+#include "process/model/model.h"
 
 using Clock = std::chrono::steady_clock;
 

@@ -19,8 +19,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "process/exposure_render.h"
-#include "process/tonemap.h"
+#include "process/render/exposure_render.h"
+#include "process/render/tonemap.h"
 
 namespace {
 

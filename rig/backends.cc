@@ -9,16 +9,16 @@
 #include "sim/world.h"
 #if RIG_WITH_GPHOTO2
 #define RIG_HAVE_GPHOTO2_BACKEND 1
-#include "capture/gphoto2_camera.h"
+#include "capture/devices/gphoto2_camera.h"
 #endif
 #if RIG_WITH_SERIALPORT
 #define RIG_HAVE_SERIAL_BACKEND 1
-#include "rig/grbl_motor.h"
-#include "rig/maestro_motor.h"
+#include "capture/devices/grbl_motor.h"
+#include "capture/devices/maestro_motor.h"
 #endif
 #if RIG_WITH_GPIOD
 #define RIG_HAVE_GPIOD_BACKEND 1
-#include "rig/gpiod_lamp.h"
+#include "capture/devices/gpiod_lamp.h"
 #endif
 
 namespace rig {

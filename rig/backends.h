@@ -8,11 +8,11 @@
 #include <string>
 #include <vector>
 
-#include "capture/camera.h"
+#include "capture/devices/camera.h"
 #include "config/config.h"
-#include "rig/lamp.h"
-#include "rig/motor.h"
-#include "rig/pose.h"
+#include "capture/devices/lamp.h"
+#include "capture/devices/motor.h"
+#include "capture/plan/pose.h"
 
 namespace rig {
 

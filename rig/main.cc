@@ -4,7 +4,7 @@
 #include <string>
 
 #include "build_info.h"
-#include "process/image_io.h"
+#include "process/io/image_io.h"
 #include "rig/backends.h"
 #include "rig/commands/command.h"
 

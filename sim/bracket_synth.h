@@ -12,7 +12,7 @@
 
 #include <opencv2/core.hpp>
 
-#include "process/image_io.h"
+#include "process/io/image_io.h"
 
 namespace rig::synth {
 

@@ -5,7 +5,7 @@
 // Geometry. A fixed orthographic camera looks down -z: pixel (i, j) (column, row; row 0 at
 // the top) sees the point x = (i + 0.5 - W/2) / (H/2), y = (H/2 - j - 0.5) / (H/2), so y runs
 // over [-1, 1] and x over [-W/H, W/H]. The object frame is the one of
-// process/light_direction.h: x right, y up, z towards the camera; the view direction is +z.
+// process/model/light_direction.h: x right, y up, z towards the camera; the view direction is +z.
 //
 // Reflectance. Every pixel has a normal N, a diffuse albedo a (per channel, a procedural
 // texture), and a normalised Blinn-Phong lobe (ks, shininess n). For a point lamp in the unit
@@ -37,7 +37,7 @@
 
 #include "config/config.h"
 #include "config/result.h"
-#include "process/light_direction.h"
+#include "process/model/light_direction.h"
 
 namespace rig {
 

@@ -8,7 +8,7 @@
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
 
-#include "capture/bracket.h"
+#include "capture/plan/bracket.h"
 #include "config/log.h"
 
 namespace rig {

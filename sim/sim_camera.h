@@ -33,7 +33,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
-#include "capture/camera.h"
+#include "capture/devices/camera.h"
 #include "config/config.h"
 #include "sim/scene.h"
 #include "sim/world.h"

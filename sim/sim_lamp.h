@@ -12,7 +12,7 @@
 #include <string>
 
 #include "config/config.h"
-#include "rig/lamp.h"
+#include "capture/devices/lamp.h"
 #include "sim/world.h"
 
 namespace rig {

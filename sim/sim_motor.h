@@ -25,7 +25,7 @@
 #include <string>
 
 #include "config/config.h"
-#include "rig/motor.h"
+#include "capture/devices/motor.h"
 #include "sim/world.h"
 
 namespace rig {

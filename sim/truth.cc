@@ -7,9 +7,9 @@
 
 #include <fmt/format.h>
 
-#include "process/exr_io.h"
-#include "process/light_direction.h"
-#include "rig/session_store.h"
+#include "process/io/exr_io.h"
+#include "process/model/light_direction.h"
+#include "capture/session/session_store.h"
 
 namespace rig {
 namespace {

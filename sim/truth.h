@@ -18,7 +18,7 @@
 
 #include "config/config.h"
 #include "config/result.h"
-#include "rig/pose.h"
+#include "capture/plan/pose.h"
 #include "sim/scene.h"
 #include "sim/sim_camera.h"
 

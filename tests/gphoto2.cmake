@@ -4,7 +4,7 @@
 if(RIG_WITH_GPHOTO2)
   add_executable(gphoto2_camera_test ${CMAKE_CURRENT_SOURCE_DIR}/gphoto2/gphoto2_camera_test.cc
                                      ${CMAKE_CURRENT_SOURCE_DIR}/test_env.cc)
-  target_link_libraries(gphoto2_camera_test PRIVATE rig_test_support rig_commands rig_core rig_sim
+  target_link_libraries(gphoto2_camera_test PRIVATE rig_test_support rig_commands rig_sim
                         rig_process rig_capture rig_config GTest::gtest GTest::gmock GTest::gtest_main)
   target_include_directories(gphoto2_camera_test PRIVATE ${PROJECT_SOURCE_DIR} ${PROJECT_BINARY_DIR})
   target_compile_definitions(gphoto2_camera_test PRIVATE ${RIG_TEST_DEFINITIONS})

@@ -5,7 +5,7 @@
 #include "rig/backends.h"
 #include "rig/commands/command.h"
 #include "rig/commands/session_run.h"
-#include "rig/signals.h"
+#include "capture/devices/signals.h"
 
 namespace rig {
 

@@ -1,10 +1,10 @@
 // rig check-config FILE: validates a configuration and lists every problem with its place.
 #include <cstdio>
 
-#include "capture/bracket.h"
+#include "capture/plan/bracket.h"
 #include "config/config.h"
 #include "rig/commands/command.h"
-#include "rig/pose.h"
+#include "capture/plan/pose.h"
 
 namespace rig {
 

@@ -7,10 +7,10 @@
 
 #include "config/config.h"
 #include "config/log.h"
-#include "process/exr_io.h"
-#include "process/model.h"
-#include "process/model_stream.h"
-#include "process/rti.h"
+#include "process/io/exr_io.h"
+#include "process/model/model.h"
+#include "process/model/model_stream.h"
+#include "process/model/rti.h"
 #include "rig/commands/command.h"
 
 namespace rig {

@@ -3,8 +3,8 @@
 #include <cstdio>
 
 #include "config/log.h"
-#include "process/hdr.h"
-#include "process/image_io.h"
+#include "process/hdr/hdr.h"
+#include "process/io/image_io.h"
 #include "rig/commands/command.h"
 
 namespace rig {

@@ -4,7 +4,7 @@
 #include "config/log.h"
 #include "rig/commands/command.h"
 #include "rig/commands/session_run.h"
-#include "rig/processor.h"
+#include "capture/daemon/processor.h"
 
 namespace rig {
 

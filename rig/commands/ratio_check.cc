@@ -5,9 +5,9 @@
 
 #include <opencv2/imgcodecs.hpp>
 
-#include "process/hdr.h"
-#include "process/image_io.h"
-#include "process/ratio_check.h"
+#include "process/hdr/hdr.h"
+#include "process/io/image_io.h"
+#include "process/hdr/ratio_check.h"
 #include "rig/commands/command.h"
 
 namespace rig {

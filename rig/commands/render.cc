@@ -10,12 +10,12 @@
 #include <opencv2/videoio.hpp>
 
 #include "config/config.h"
-#include "process/exposure_render.h"
-#include "process/exr_io.h"
-#include "process/hdr.h"
-#include "process/light_direction.h"
-#include "process/model.h"
-#include "process/tonemap.h"
+#include "process/render/exposure_render.h"
+#include "process/io/exr_io.h"
+#include "process/hdr/hdr.h"
+#include "process/model/light_direction.h"
+#include "process/model/model.h"
+#include "process/render/tonemap.h"
 #include "rig/commands/command.h"
 
 namespace rig {

@@ -6,8 +6,8 @@
 #include "config/log.h"
 #include "rig/backends.h"
 #include "rig/commands/command.h"
-#include "rig/daemon.h"
-#include "rig/signals.h"
+#include "capture/daemon/daemon.h"
+#include "capture/devices/signals.h"
 
 namespace rig {
 
@@ -50,7 +50,7 @@ int RunSession(Session& session, bool resuming, bool process, bool progress) {
 
 }  // namespace rig
 
-#include "process/model_stream.h"
+#include "process/model/model_stream.h"
 
 namespace rig {
 

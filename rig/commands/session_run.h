@@ -1,7 +1,7 @@
 // Shared by `rig capture` and `rig resume`: devices, truth, the daemon, the model, the summary.
 #pragma once
 
-#include "rig/session_store.h"
+#include "capture/session/session_store.h"
 
 namespace rig {
 

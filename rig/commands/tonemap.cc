@@ -12,8 +12,8 @@
 #include <opencv2/imgproc.hpp>
 
 #include "config/config.h"
-#include "process/exr_io.h"
-#include "process/tonemap.h"
+#include "process/io/exr_io.h"
+#include "process/render/tonemap.h"
 #include "rig/commands/command.h"
 
 namespace rig {

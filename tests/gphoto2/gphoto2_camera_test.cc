@@ -17,9 +17,9 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include "capture/bracket.h"
-#include "capture/gphoto2_camera.h"
-#include "rig/session_store.h"
+#include "capture/plan/bracket.h"
+#include "capture/devices/gphoto2_camera.h"
+#include "capture/session/session_store.h"
 #include "tests/support/run_rig.h"
 
 // Failures the virtual camera cannot produce (busy, a claimed device, a vanished one) and

@@ -1,6 +1,6 @@
 // Tests of process/exposure_render: round trip through a known response, saturation at both
 // ends, interpolation between levels, monotonic in exposure time, bad input.
-#include "process/exposure_render.h"
+#include "process/render/exposure_render.h"
 
 #include <cmath>
 #include <random>

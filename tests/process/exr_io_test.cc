@@ -1,5 +1,5 @@
 // Tests of process/exr_io: round trips (half, float), attributes, errors naming the file.
-#include "process/exr_io.h"
+#include "process/io/exr_io.h"
 
 #include <cstdlib>
 #include <filesystem>

@@ -1,7 +1,7 @@
 // HDR radiance maps against known truth: response recovery (Debevec–Malik) against the true
 // curve, the merge against the true radiance (and against OpenCV's on the same bracket),
 // masks for what no exposure records, linear input, λ and sampling, and bad input.
-#include "process/hdr.h"
+#include "process/hdr/hdr.h"
 
 #include <filesystem>
 #include <fstream>
@@ -11,7 +11,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/photo.hpp>
 
-#include "process/image_io.h"
+#include "process/io/image_io.h"
 #include "sim/bracket_synth.h"
 
 namespace rig {

@@ -1,7 +1,7 @@
 // The paper's Fig. 6 on simulated data: two surfaces of known radiance ratio seen through a
 // filmic (non-linear) camera; the ratio of their 8-bit intensities varies with the exposure
 // time, the ratio of their radiances (through the recovered response) stays at the truth.
-#include "process/ratio_check.h"
+#include "process/hdr/ratio_check.h"
 
 #include <cmath>
 #include <sstream>

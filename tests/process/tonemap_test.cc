@@ -1,6 +1,6 @@
 // Tests of process/tonemap: Ward's ceiling on constructed histograms, monotonic mapping,
 // linear fallback, full display range, colour ratios, encoding, and the real HDR images.
-#include "process/tonemap.h"
+#include "process/render/tonemap.h"
 
 #include <cmath>
 #include <cstdlib>
@@ -10,7 +10,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
-#include "process/exr_io.h"
+#include "process/io/exr_io.h"
 
 namespace rig {
 namespace {

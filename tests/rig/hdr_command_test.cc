@@ -10,7 +10,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
-#include "process/exr_io.h"
+#include "process/io/exr_io.h"
 #include "tests/support/run_rig.h"
 
 namespace rig {

@@ -9,7 +9,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include "process/exr_io.h"
+#include "process/io/exr_io.h"
 #include "tests/support/run_rig.h"
 
 namespace rig {

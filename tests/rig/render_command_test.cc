@@ -9,7 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
 
-#include "process/exr_io.h"
+#include "process/io/exr_io.h"
 #include "sim/truth.h"
 #include "tests/support/run_rig.h"
 

@@ -9,8 +9,8 @@
 
 #include <gtest/gtest.h>
 
-#include "process/exr_io.h"
-#include "process/light_direction.h"
+#include "process/io/exr_io.h"
+#include "process/model/light_direction.h"
 #include "sim/truth.h"
 #include "tests/support/run_rig.h"
 

@@ -8,8 +8,8 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
-#include "capture/bracket.h"
-#include "process/light_direction.h"
+#include "capture/plan/bracket.h"
+#include "process/model/light_direction.h"
 
 namespace rig {
 namespace {

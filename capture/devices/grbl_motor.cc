@@ -1,0 +1,737 @@
+// GrblMotor: GRBL 1.1's line protocol (one ok/error:N per line, character counting),
+// real-time commands (? ! ~ ctrl-x), homing, and recovery from the controller's bad days.
+#include "capture/devices/grbl_motor.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <thread>
+
+#include "config/log.h"
+
+namespace rig {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// GRBL's serial receive buffer is 128 bytes; streaming keeps the sum of unacknowledged
+// lines below it (the "character counting" protocol of doc/markdown/interface.md).
+constexpr size_t kGrblRxBuffer = 127;
+// Status reports carry three decimals; a position within this many units is "there".
+constexpr double kPositionToleranceUnits = 0.0105;
+
+Seconds Left(Clock::time_point deadline) {
+  return std::chrono::duration<double>(deadline - Clock::now());
+}
+
+Clock::time_point After(Seconds s) {
+  return Clock::now() + std::chrono::duration_cast<Clock::duration>(s);
+}
+
+bool ParseInt(std::string_view s, int* out) {
+  if (s.empty() || s.size() > 4) return false;
+  int v = 0;
+  for (char c : s) {
+    if (c < '0' || c > '9') return false;
+    v = v * 10 + (c - '0');
+  }
+  *out = v;
+  return true;
+}
+
+bool ParseTriple(std::string_view s, std::array<double, 3>* out) {
+  std::string text(s);
+  const char* p = text.c_str();
+  for (int i = 0; i < 3; ++i) {
+    char* end = nullptr;
+    double v = std::strtod(p, &end);
+    if (end == p) return false;
+    (*out)[i] = v;
+    p = end;
+    if (i < 2) {
+      if (*p != ',') return false;
+      ++p;
+    }
+  }
+  // More axes (A, B, C) may follow; they are not ours.
+  return *p == '\0' || *p == ',';
+}
+
+int AxisIndex(const std::string& axis) { return axis == "Y" ? 1 : axis == "Z" ? 2 : 0; }
+
+}  // namespace
+
+const char* GrblErrorMeaning(int code) {
+  switch (code) {
+    case 1: return "G-code words consist of a letter and a value. Letter was not found.";
+    case 2: return "Missing the expected G-code word value or numeric value format is not valid.";
+    case 3: return "Grbl '$' system command was not recognized or supported.";
+    case 4: return "Negative value received for an expected positive value.";
+    case 5: return "Homing cycle failure. Homing is not enabled via settings.";
+    case 6: return "Minimum step pulse time must be greater than 3usec.";
+    case 7: return "An EEPROM read failed. Auto-restoring affected EEPROM to default values.";
+    case 8: return "Grbl '$' command cannot be used unless Grbl is IDLE. Ensures smooth operation during a job.";
+    case 9: return "G-code commands are locked out during alarm or jog state.";
+    case 10: return "Soft limits cannot be enabled without homing also enabled.";
+    case 11: return "Max characters per line exceeded. Received command line was not executed.";
+    case 12: return "Grbl '$' setting value cause the step rate to exceed the maximum supported.";
+    case 13: return "Safety door detected as opened and door state initiated.";
+    case 14: return "Build info or startup line exceeded EEPROM line length limit. Line not stored.";
+    case 15: return "Jog target exceeds machine travel. Jog command has been ignored.";
+    case 16: return "Jog command has no '=' or contains prohibited g-code.";
+    case 17: return "Laser mode requires PWM output.";
+    case 20: return "Unsupported or invalid g-code command found in block.";
+    case 21: return "More than one g-code command from same modal group found in block.";
+    case 22: return "Feed rate has not yet been set or is undefined.";
+    case 23: return "G-code command in block requires an integer value.";
+    case 24: return "More than one g-code command that requires axis words found in block.";
+    case 25: return "Repeated g-code word found in block.";
+    case 26: return "No axis words found in block for g-code command or current modal state which requires them.";
+    case 27: return "Line number value is invalid.";
+    case 28: return "G-code command is missing a required value word.";
+    case 29: return "G59.x work coordinate systems are not supported.";
+    case 30: return "G53 only allowed with G0 and G1 motion modes.";
+    case 31: return "Axis words found in block when no command or current modal state uses them.";
+    case 32: return "G2 and G3 arcs require at least one in-plane axis word.";
+    case 33: return "Motion command target is invalid.";
+    case 34: return "Arc radius value is invalid.";
+    case 35: return "G2 and G3 arcs require at least one in-plane offset word.";
+    case 36: return "Unused value words found in block.";
+    case 37: return "G43.1 dynamic tool length offset is not assigned to configured tool length axis.";
+    case 38: return "Tool number greater than max supported value.";
+  }
+  return "unknown error code (not in the GRBL 1.1 table)";
+}
+
+const char* GrblAlarmMeaning(int code) {
+  switch (code) {
+    case 1: return "Hard limit triggered. Machine position is likely lost due to sudden and immediate halt. Re-homing is highly recommended.";
+    case 2: return "G-code motion target exceeds machine travel. Machine position safely retained. Alarm may be unlocked.";
+    case 3: return "Reset while in motion. Grbl cannot guarantee position. Lost steps are likely. Re-homing is highly recommended.";
+    case 4: return "Probe fail. The probe is not in the expected initial state before starting probe cycle.";
+    case 5: return "Probe fail. Probe did not contact the workpiece within the programmed travel for G38.2 and G38.4.";
+    case 6: return "Homing fail. Reset during active homing cycle.";
+    case 7: return "Homing fail. Safety door was opened during active homing cycle.";
+    case 8: return "Homing fail. Cycle failed to clear limit switch when pulling off. Try increasing pull-off setting or check wiring.";
+    case 9: return "Homing fail. Could not find limit switch within search distance. Defined as 1.5 * max_travel on search and 5 * pulloff on locate phases.";
+  }
+  return "unknown alarm code (not in the GRBL 1.1 table)";
+}
+
+std::optional<GrblStatus> ParseGrblStatus(std::string_view line) {
+  if (line.size() < 3 || line.front() != '<' || line.back() != '>') return std::nullopt;
+  std::string_view body = line.substr(1, line.size() - 2);
+  GrblStatus s;
+  bool first = true;
+  bool have_wpos = false;
+  while (!body.empty()) {
+    size_t bar = body.find('|');
+    std::string_view field = body.substr(0, bar);
+    body = bar == std::string_view::npos ? std::string_view() : body.substr(bar + 1);
+    if (first) {
+      first = false;
+      size_t colon = field.find(':');
+      s.state = std::string(field.substr(0, colon));
+      if (colon != std::string_view::npos && !ParseInt(field.substr(colon + 1), &s.substate))
+        return std::nullopt;
+      static const char* kStates[] = {"Idle", "Run", "Hold", "Jog", "Alarm", "Door", "Check", "Home", "Sleep"};
+      bool known = false;
+      for (const char* k : kStates) known = known || s.state == k;
+      if (!known) return std::nullopt;
+      continue;
+    }
+    size_t colon = field.find(':');
+    if (colon == std::string_view::npos) return std::nullopt;
+    std::string_view key = field.substr(0, colon), value = field.substr(colon + 1);
+    if (key == "MPos") {
+      if (!ParseTriple(value, &s.mpos)) return std::nullopt;
+      s.has_position = true;
+    } else if (key == "WPos") {
+      if (!ParseTriple(value, &s.wpos)) return std::nullopt;
+      s.has_position = true;
+      have_wpos = true;
+    } else if (key == "WCO") {
+      std::array<double, 3> w{};
+      if (!ParseTriple(value, &w)) return std::nullopt;
+      s.wco = w;
+    } else if (key == "FS" || key == "F") {
+      s.feed = std::strtod(std::string(value).c_str(), nullptr);
+    }
+  }
+  if (first || !s.has_position) return std::nullopt;
+  s.position_is_work = have_wpos;
+  if (have_wpos && s.wco) {
+    for (int i = 0; i < 3; ++i) s.mpos[i] = s.wpos[i] + (*s.wco)[i];
+  } else if (!have_wpos && s.wco) {
+    for (int i = 0; i < 3; ++i) s.wpos[i] = s.mpos[i] - (*s.wco)[i];
+  }
+  return s;
+}
+
+GrblMotor::GrblMotor(MotorConfig config)
+    : config_(std::move(config)), selector_(SerialSelector::FromConfig(config_)) {
+  h_index_ = AxisIndex(config_.grbl.h_axis);
+  v_index_ = AxisIndex(config_.grbl.v_axis);
+}
+
+GrblMotor::~GrblMotor() { Close(); }
+
+std::string GrblMotor::Describe() const { return "grbl on " + selector_.Describe(); }
+
+Error GrblMotor::Fail(ErrorCode code, const std::string& message) const {
+  return Error{code, message, selector_.Describe()};
+}
+
+Error GrblMotor::AlarmError(int code, const std::string& during) const {
+  return Fail(ErrorCode::kDevice, fmt::format("ALARM:{} {}: {}", code, during, GrblAlarmMeaning(code)));
+}
+
+bool GrblMotor::PortLost(const Error& e) const {
+  return e.code == ErrorCode::kIo && (port_ == nullptr || port_->lost());
+}
+
+std::array<double, 3> GrblMotor::WorkPosition(const GrblStatus& s) const {
+  if (s.position_is_work) return s.wpos;
+  std::array<double, 3> w{};
+  const auto& wco = s.wco ? *s.wco : wco_;
+  for (int i = 0; i < 3; ++i) w[i] = s.mpos[i] - wco[i];
+  return w;
+}
+
+GrblMotor::Line GrblMotor::Classify(const std::string& text) {
+  Line l;
+  l.text = text;
+  int code = 0;
+  if (text == "ok") {
+    l.kind = Kind::kOk;
+  } else if (text.rfind("error:", 0) == 0 && ParseInt(std::string_view(text).substr(6), &code)) {
+    l.kind = Kind::kError;
+    l.code = code;
+  } else if (text.rfind("ALARM:", 0) == 0 && ParseInt(std::string_view(text).substr(6), &code)) {
+    l.kind = Kind::kAlarm;
+    l.code = code;
+    state_ = "Alarm";
+  } else if (text.front() == '<') {
+    auto s = ParseGrblStatus(text);
+    if (s) {
+      l.kind = Kind::kStatus;
+      state_ = s->state;
+      if (s->wco) wco_ = *s->wco;
+    }
+  } else if (text.rfind("Grbl ", 0) == 0 && text.find("['$' for help]") != std::string::npos) {
+    l.kind = Kind::kBanner;
+    if (text.rfind("Grbl 1.1", 0) != 0)
+      Log("motion")->warn("grbl port={} version='{}' is not 1.1: the protocol may differ",
+                          selector_.Describe(), text);
+    if (state_ != "Alarm") state_ = "Idle";
+  } else if (text.front() == '[' && text.back() == ']') {
+    l.kind = Kind::kMessage;
+    if (text.find("'$H'|'$X' to unlock") != std::string::npos) state_ = "Alarm";
+    if (text.find("Caution: Unlocked") != std::string::npos) state_ = "Idle";
+    Log("motion")->debug("grbl port={} message='{}'", selector_.Describe(), text);
+  } else if (text.front() == '$' && text.find('=') != std::string::npos) {
+    int n = 0;
+    size_t eq = text.find('=');
+    char* end = nullptr;
+    std::string value = text.substr(eq + 1);
+    double v = std::strtod(value.c_str(), &end);
+    if (ParseInt(std::string_view(text).substr(1, eq - 1), &n) && end != value.c_str() && *end == '\0') {
+      l.kind = Kind::kSetting;
+      settings_[n] = v;
+    }
+  } else if (text.front() == '>') {
+    l.kind = Kind::kStartup;  // ">G54:ok": a startup block ran
+  }
+  if (l.kind == Kind::kGarbage) {
+    ++ignored_lines_;
+    Log("motion")->warn("grbl port={} ignoring unexpected line '{}'", selector_.Describe(),
+                        EscapeForLog(text));
+  }
+  return l;
+}
+
+Result<GrblMotor::Line> GrblMotor::NextLine(Seconds timeout, bool interruptible) {
+  if (!port_) return Fail(ErrorCode::kFault, "not open");
+  RIG_ASSIGN_OR_RETURN(auto text, port_->ReadLine(timeout, interruptible));
+  if (!text) return Fail(ErrorCode::kTimeout, fmt::format("no reply within {:.2f} s", timeout.count()));
+  Log("motion")->trace("grbl port={} << '{}'", selector_.Describe(), EscapeForLog(*text));
+  return Classify(*text);
+}
+
+Status GrblMotor::SendRealtime(char c) {
+  if (!port_) return Fail(ErrorCode::kFault, "not open");
+  return port_->Write(std::string_view(&c, 1), Seconds(config_.reply_timeout_s));
+}
+
+Status GrblMotor::Queue(const std::string& line) {
+  if (!port_) return Fail(ErrorCode::kFault, "not open");
+  size_t bytes = line.size() + 1;
+  auto used = [&] {
+    size_t n = 0;
+    for (const auto& o : outstanding_) n += o.second;
+    return n;
+  };
+  while (!outstanding_.empty() && used() + bytes > kGrblRxBuffer) {
+    RIG_ASSIGN_OR_RETURN(Line r, AwaitResponse(Seconds(config_.reply_timeout_s), OnAlarm::kRecord));
+    (void)r;
+  }
+  Log("motion")->trace("grbl port={} >> '{}'", selector_.Describe(), line);
+  RIG_TRY(port_->Write(line + "\n", Seconds(config_.reply_timeout_s)));
+  outstanding_.emplace_back(line, bytes);
+  return Ok();
+}
+
+Result<GrblMotor::Line> GrblMotor::AwaitResponse(Seconds timeout, OnAlarm on_alarm, bool interruptible) {
+  RIG_CHECK(!outstanding_.empty(), "no line awaits a reply");
+  auto deadline = After(timeout);
+  for (;;) {
+    std::string waiting_for = outstanding_.front().first;
+    Seconds left = Left(deadline);
+    if (left.count() <= 0)
+      return Fail(ErrorCode::kTimeout,
+                  fmt::format("no reply to '{}' within {:.2f} s", waiting_for, timeout.count()));
+    auto next = NextLine(left, interruptible);
+    if (!next.ok()) {
+      if (next.error().code == ErrorCode::kTimeout)
+        return Fail(ErrorCode::kTimeout,
+                    fmt::format("no reply to '{}' within {:.2f} s", waiting_for, timeout.count()));
+      return next.error();
+    }
+    Line l = std::move(next).value();
+    switch (l.kind) {
+      case Kind::kOk:
+      case Kind::kError:
+        outstanding_.pop_front();
+        return l;
+      case Kind::kAlarm:
+        pending_alarm_ = l.code;
+        if (on_alarm == OnAlarm::kFail)
+          return AlarmError(l.code, fmt::format("while waiting for the reply to '{}'", waiting_for));
+        break;
+      case Kind::kBanner:
+        outstanding_.clear();
+        reset_seen_ = true;
+        return Fail(ErrorCode::kDevice,
+                    fmt::format("the controller reset (banner received) while waiting for the reply to '{}'",
+                                waiting_for));
+      default:
+        break;
+    }
+  }
+}
+
+Result<GrblStatus> GrblMotor::QueryStatus(bool interruptible) {
+  RIG_TRY(SendRealtime('?'));
+  Seconds timeout(config_.reply_timeout_s);
+  auto deadline = After(timeout);
+  for (;;) {
+    Seconds left = Left(deadline);
+    if (left.count() <= 0) break;
+    auto next = NextLine(left, interruptible);
+    if (!next.ok()) {
+      if (next.error().code == ErrorCode::kTimeout) break;
+      return next.error();
+    }
+    Line& l = next.value();
+    if (l.kind == Kind::kStatus) return *ParseGrblStatus(l.text);
+    if (l.kind == Kind::kAlarm) pending_alarm_ = l.code;
+    if ((l.kind == Kind::kOk || l.kind == Kind::kError) && !outstanding_.empty()) outstanding_.pop_front();
+  }
+  return Fail(ErrorCode::kTimeout,
+              fmt::format("no status report in reply to '?' within {:.2f} s", timeout.count()));
+}
+
+Status GrblMotor::AwaitBanner(Seconds timeout) {
+  auto deadline = After(timeout);
+  for (;;) {
+    Seconds left = Left(deadline);
+    if (left.count() <= 0) return Fail(ErrorCode::kTimeout, "no banner");
+    auto next = NextLine(left);
+    if (!next.ok()) return next.error();
+    if (next->kind == Kind::kBanner) {
+      outstanding_.clear();
+      pending_alarm_ = 0;
+      return Ok();
+    }
+  }
+}
+
+Status GrblMotor::WaitForBannerOrReset() {
+  Seconds timeout(config_.grbl.banner_timeout_s);
+  Status st = AwaitBanner(timeout);
+  if (st.ok() || st.error().code != ErrorCode::kTimeout) return st;
+  // Boards without the DTR auto-reset (or a controller that was already running) stay
+  // silent on open: a soft reset makes GRBL print its banner again.
+  Log("motion")->warn("grbl port={} no banner within {:.1f} s after opening; sending a soft reset (ctrl-x)",
+                      selector_.Describe(), timeout.count());
+  RIG_TRY(SendRealtime('\x18'));
+  st = AwaitBanner(timeout);
+  if (st.ok() || st.error().code != ErrorCode::kTimeout) return st;
+  return Fail(ErrorCode::kTimeout,
+              fmt::format("no GRBL banner within {:.1f} s after opening nor after a soft reset (ctrl-x): "
+                          "is a GRBL 1.1 controller on this port at {} baud?",
+                          timeout.count(), config_.baud));
+}
+
+Status GrblMotor::ReadSettings() {
+  RIG_TRY(Queue("$$"));
+  RIG_ASSIGN_OR_RETURN(Line r, AwaitResponse(Seconds(config_.reply_timeout_s), OnAlarm::kRecord));
+  auto log = Log("motion");
+  if (r.kind == Kind::kError) {
+    log->warn("grbl port={} cannot read settings ($$): error:{} ({})", selector_.Describe(), r.code,
+              GrblErrorMeaning(r.code));
+    return Ok();
+  }
+  auto get = [&](int n) { auto it = settings_.find(n); return it == settings_.end() ? NAN : it->second; };
+  const double upd = config_.grbl.units_per_degree;
+  for (auto [name, index] : {std::pair{"h", h_index_}, std::pair{"v", v_index_}}) {
+    double steps = get(100 + index), rate = get(110 + index), accel = get(120 + index);
+    log->info("grbl port={} axis={} ${}={} steps/unit ({:.3f} steps/deg) ${}={} units/min ${}={} units/s^2",
+              selector_.Describe(), name, 100 + index, steps, steps * upd, 110 + index, rate, 120 + index,
+              accel);
+    double feed = config_.speed_deg_per_s * 60 * upd;
+    if (std::isfinite(rate) && feed > rate + 1e-9)
+      log->warn("grbl port={} axis={} speed_deg_per_s={} needs F{:.1f} but ${}={} caps it: moves will be slower",
+                selector_.Describe(), name, config_.speed_deg_per_s, feed, 110 + index, rate);
+    if (std::isfinite(accel) && std::fabs(accel / upd - config_.accel_deg_per_s2) > 1e-6)
+      log->info("grbl port={} axis={} plans with its own acceleration ${}={} ({:.3f} deg/s^2), not "
+                "accel_deg_per_s2={}",
+                selector_.Describe(), name, 120 + index, accel, accel / upd, config_.accel_deg_per_s2);
+  }
+  return Ok();
+}
+
+Status GrblMotor::OpenPort() {
+  port_.reset();
+  outstanding_.clear();
+  RIG_ASSIGN_OR_RETURN(port_, SerialPort::Open(selector_));
+  return Ok();
+}
+
+Status GrblMotor::Open() {
+  Close();
+  RIG_TRY(OpenPort());
+  Status st = [&]() -> Status {
+    RIG_TRY(WaitForBannerOrReset());
+    RIG_ASSIGN_OR_RETURN(GrblStatus s, QueryStatus());
+    RIG_TRY(ReadSettings());
+    Log("motion")->info("grbl open port={} device={} state={}", selector_.Describe(), port_->device(),
+                        s.state);
+    return Ok();
+  }();
+  if (!st.ok()) port_.reset();
+  return st;
+}
+
+void GrblMotor::Close() {
+  port_.reset();
+  outstanding_.clear();
+}
+
+Status GrblMotor::DoHome() {
+  auto it = settings_.find(22);
+  if (it != settings_.end() && it->second == 0)
+    return Fail(ErrorCode::kUnsupported,
+                "homing is disabled on the controller ($22=0): fit limit switches and set $22=1, or set "
+                "motor.home_on_start = false");
+  pending_alarm_ = 0;
+  RIG_TRY(Queue("$H"));
+  auto r = AwaitResponse(Seconds(config_.move_timeout_s), OnAlarm::kRecord);
+  if (!r.ok()) {
+    if (PortLost(r.error())) return r.error();
+    fault_ = "homing did not finish: " + r.error().message;
+    (void)StopMotion(false);
+    return Error{r.error().code, r.error().message + "; soft reset sent", r.error().context};
+  }
+  if (r->kind == Kind::kError)
+    return Fail(ErrorCode::kDevice, fmt::format("homing ($H) refused: error:{} ({})", r->code,
+                                                GrblErrorMeaning(r->code)));
+  if (pending_alarm_ != 0) {
+    // GRBL reports a failed homing cycle as ALARM:N *before* the ok of $H, then resets
+    // (banner, "[MSG:'$H'|'$X' to unlock]"). The ok is not a success.
+    int code = pending_alarm_;
+    fault_ = fmt::format("homing failed with ALARM:{}", code);
+    last_pose_.reset();
+    (void)AwaitBanner(Seconds(config_.reply_timeout_s));
+    return AlarmError(code, "during homing ($H)");
+  }
+  fault_.clear();
+  state_ = "Idle";
+  RIG_ASSIGN_OR_RETURN(GrblStatus s, QueryStatus());
+  auto w = WorkPosition(s);
+  const double upd = config_.grbl.units_per_degree;
+  last_pose_ = Pose{w[h_index_] / upd, w[v_index_] / upd};
+  if (std::fabs(w[h_index_]) > kPositionToleranceUnits || std::fabs(w[v_index_]) > kPositionToleranceUnits)
+    Log("motion")->warn("grbl port={} after homing the work position is h={:.3f} v={:.3f} units, not 0: "
+                        "set the work offset (G10 L20 P1 X0 Y0) so that home is pose 0,0",
+                        selector_.Describe(), w[h_index_], w[v_index_]);
+  Log("motion")->info("grbl homed port={}", selector_.Describe());
+  return Ok();
+}
+
+Status GrblMotor::Home() {
+  if (!port_) return Fail(ErrorCode::kFault, "not open");
+  Status st = DoHome();
+  if (!st.ok() && PortLost(st.error())) {
+    Log("motion")->warn("grbl port={} lost during homing; reconnecting", selector_.Describe());
+    RIG_TRY(Reconnect());
+    if (config_.after_reconnect == "home") return Ok();
+    st = DoHome();
+  }
+  return st;
+}
+
+Status GrblMotor::MoveTo(const Pose& pose) {
+  std::string where = "pose " + pose.Name();
+  if (const std::string why = SoftLimitViolation(config_, pose); !why.empty())
+    return Fail(ErrorCode::kInvalidInput, why).Within(where);
+  if (!port_) return Fail(ErrorCode::kFault, "not open").Within(where);
+  if (!fault_.empty())
+    return Fail(ErrorCode::kFault, "in fault state (" + fault_ + "): home or reconnect first").Within(where);
+  Status st = DoMove(pose);
+  if (!st.ok() && PortLost(st.error())) {
+    Log("motion")->warn("grbl port={} lost during the move to {}; reconnecting", selector_.Describe(),
+                        pose.Name());
+    Status rc = Reconnect();
+    if (!rc.ok()) return rc.error().Within(where);
+    st = DoMove(pose);
+  }
+  if (!st.ok()) return st.error().Within(where);
+  return Ok();
+}
+
+Status GrblMotor::DoMove(const Pose& pose) {
+  if (state_ == "Alarm") {
+    RIG_ASSIGN_OR_RETURN(GrblStatus s, QueryStatus());
+    if (s.state == "Alarm")
+      return Fail(ErrorCode::kDevice, "the controller is in alarm lock (position unknown): home first");
+  }
+  const double upd = config_.grbl.units_per_degree;
+  std::array<double, 3> target{};
+  target[h_index_] = pose.h_deg * upd;
+  target[v_index_] = pose.v_deg * upd;
+  std::string line = fmt::format("G90 G1 {}{:.3f} {}{:.3f} F{:.1f}", config_.grbl.h_axis, target[h_index_],
+                                 config_.grbl.v_axis, target[v_index_], config_.speed_deg_per_s * 60 * upd);
+  const bool dwell = config_.grbl.completion == "dwell";
+  pending_alarm_ = 0;
+  last_pose_.reset();  // unknown until the move is confirmed
+  RIG_TRY(Queue(line));
+  // G4 P0 waits for the planner to empty before its ok: sent together with the move, its
+  // ok is the completion signal and costs no extra round trip.
+  if (dwell) RIG_TRY(Queue("G4 P0"));
+  auto r1 = AwaitResponse(Seconds(config_.reply_timeout_s), OnAlarm::kFail);
+  if (!r1.ok()) return PortLost(r1.error()) ? r1.error() : AbortMove(pose, r1.error());
+  if (r1->kind == Kind::kError) {
+    if (dwell) (void)AwaitResponse(Seconds(config_.reply_timeout_s), OnAlarm::kRecord);
+    return Fail(ErrorCode::kDevice, fmt::format("'{}' refused: error:{} ({})", line, r1->code,
+                                                GrblErrorMeaning(r1->code)));
+  }
+  if (dwell) {
+    auto r2 = AwaitResponse(Seconds(config_.move_timeout_s), OnAlarm::kFail);
+    if (!r2.ok()) {
+      if (PortLost(r2.error())) return r2.error();
+      Error e = r2.error();
+      if (e.code == ErrorCode::kTimeout)
+        e.message = fmt::format("the move did not complete within {:.1f} s (G4 P0 never acknowledged)",
+                                config_.move_timeout_s);
+      return AbortMove(pose, e);
+    }
+    if (r2->kind == Kind::kError)
+      return Fail(ErrorCode::kDevice, fmt::format("'G4 P0' refused: error:{} ({})", r2->code,
+                                                  GrblErrorMeaning(r2->code)));
+  } else {
+    Status st = WaitIdleByPolling(pose, target);
+    if (!st.ok()) return PortLost(st.error()) ? st.error() : AbortMove(pose, st.error());
+  }
+  last_pose_ = pose;
+  return Ok();
+}
+
+Status GrblMotor::WaitIdleByPolling(const Pose& pose, const std::array<double, 3>& target) {
+  auto deadline = After(Seconds(config_.move_timeout_s));
+  bool seen_motion = false;
+  const double upd = config_.grbl.units_per_degree;
+  for (;;) {
+    auto tick = After(Seconds(config_.grbl.poll_interval_s));
+    RIG_ASSIGN_OR_RETURN(GrblStatus s, QueryStatus());
+    if (pending_alarm_ != 0) return AlarmError(pending_alarm_, "during the move");
+    if (s.state == "Alarm") return Fail(ErrorCode::kDevice, "the controller entered alarm during the move");
+    auto w = WorkPosition(s);
+    bool there = std::fabs(w[h_index_] - target[h_index_]) <= kPositionToleranceUnits &&
+                 std::fabs(w[v_index_] - target[v_index_]) <= kPositionToleranceUnits;
+    if (s.state == "Idle") {
+      if (there) return Ok();
+      // Right after the ok of the move GRBL may not have started the cycle yet.
+      if (seen_motion)
+        return Fail(ErrorCode::kDevice,
+                    fmt::format("the controller went idle at h {:.3f} v {:.3f} deg, short of {}",
+                                w[h_index_] / upd, w[v_index_] / upd, pose.Name()));
+    } else {
+      seen_motion = true;
+    }
+    if (Clock::now() >= deadline)
+      return Fail(ErrorCode::kTimeout,
+                  fmt::format("the move did not reach Idle within {:.1f} s (state {}, at h {:.3f} v {:.3f} deg)",
+                              config_.move_timeout_s, s.state, w[h_index_] / upd, w[v_index_] / upd));
+    // Until the next poll (GRBL asks for at most ~5 Hz), read whatever else it says.
+    while (Clock::now() < tick) {
+      auto next = NextLine(Left(tick));
+      if (!next.ok()) {
+        if (next.error().code == ErrorCode::kTimeout) break;
+        return next.error();
+      }
+      if (next->kind == Kind::kAlarm) return AlarmError(next->code, "during the move");
+    }
+  }
+}
+
+Status GrblMotor::StopMotion(bool unlock) {
+  if (!port_) return Fail(ErrorCode::kFault, "not open");
+  // Feed hold decelerates under control; then a soft reset drops the rest of the planner.
+  RIG_TRY(SendRealtime('!'));
+  auto deadline = After(Seconds(config_.reply_timeout_s));
+  while (Clock::now() < deadline) {
+    auto s = QueryStatus(false);
+    if (!s.ok()) {
+      if (PortLost(s.error())) return s.error();
+      break;
+    }
+    if ((s->state == "Hold" && s->substate == 0) || s->state == "Idle" || s->state == "Alarm") break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  RIG_TRY(SendRealtime('\x18'));
+  outstanding_.clear();
+  auto banner_deadline = After(Seconds(std::max(config_.reply_timeout_s, config_.grbl.banner_timeout_s)));
+  for (;;) {
+    Seconds left = Left(banner_deadline);
+    if (left.count() <= 0) return Fail(ErrorCode::kTimeout, "no banner after the soft reset");
+    auto next = NextLine(left, false);
+    if (!next.ok()) return next.error();
+    if (next->kind == Kind::kBanner) break;
+  }
+  outstanding_.clear();
+  if (unlock) {
+    // A reset during a hold raises ALARM:3 although the controlled deceleration kept
+    // every step: the position is still good, so unlock. (Not interruptible: this is how
+    // a Ctrl-C leaves the arm.)
+    auto s = QueryStatus(false);
+    if (s.ok() && s->state == "Alarm") {
+      RIG_TRY(Queue("$X"));
+      RIG_ASSIGN_OR_RETURN(Line r, AwaitResponse(Seconds(config_.reply_timeout_s), OnAlarm::kRecord, false));
+      (void)r;
+    }
+  }
+  return Ok();
+}
+
+Error GrblMotor::AbortMove(const Pose& pose, const Error& why) {
+  if (why.code == ErrorCode::kInterrupted) {
+    Status st = StopMotion(true);
+    Error e = why;
+    e.message += st.ok() ? "; the move was stopped (feed hold, soft reset)"
+                         : "; stopping failed: " + st.error().message;
+    return e;
+  }
+  Status st = StopMotion(false);
+  fault_ = fmt::format("move to {} failed: {}", pose.Name(), why.message);
+  Error e = why;
+  e.message += st.ok() ? "; feed hold and soft reset sent, the axes must be re-homed"
+                       : "; stopping failed too: " + st.error().message;
+  Log("motion")->error("grbl port={} fault: {}", selector_.Describe(), e.message);
+  return e;
+}
+
+Result<Pose> GrblMotor::Position() {
+  if (!port_) return Fail(ErrorCode::kFault, "not open");
+  RIG_ASSIGN_OR_RETURN(GrblStatus s, QueryStatus());
+  auto w = WorkPosition(s);
+  const double upd = config_.grbl.units_per_degree;
+  return Pose{w[h_index_] / upd, w[v_index_] / upd};
+}
+
+Status GrblMotor::Stop() {
+  if (!port_) return Ok();
+  auto s = QueryStatus(false);
+  if (!s.ok()) return s.error();
+  if (s->state == "Idle" && outstanding_.empty()) return Ok();
+  if (s->state == "Alarm") return Ok();
+  last_pose_.reset();
+  return StopMotion(true);
+}
+
+Status GrblMotor::AfterReconnect() {
+  if (config_.after_reconnect == "home") return DoHome();
+  RIG_ASSIGN_OR_RETURN(GrblStatus s, QueryStatus());
+  if (!last_pose_) {
+    fault_ = "position unknown after reconnect and after_reconnect = verify";
+    return Fail(ErrorCode::kFault, fault_ + ": home first");
+  }
+  if (s.state == "Alarm") {
+    RIG_TRY(Queue("$X"));
+    RIG_ASSIGN_OR_RETURN(Line r, AwaitResponse(Seconds(config_.reply_timeout_s), OnAlarm::kRecord));
+    (void)r;
+  }
+  const double upd = config_.grbl.units_per_degree;
+  auto w = WorkPosition(s);
+  Pose now{w[h_index_] / upd, w[v_index_] / upd};
+  if (std::fabs(w[h_index_] - last_pose_->h_deg * upd) > kPositionToleranceUnits ||
+      std::fabs(w[v_index_] - last_pose_->v_deg * upd) > kPositionToleranceUnits) {
+    fault_ = fmt::format("position after reconnect h {:.3f} v {:.3f} deg differs from the last pose {}",
+                         now.h_deg, now.v_deg, last_pose_->Name());
+    return Fail(ErrorCode::kFault, fault_ + ": re-home (after_reconnect = verify)");
+  }
+  fault_.clear();
+  Log("motion")->info("grbl port={} position verified after reconnect at {}", selector_.Describe(),
+                      last_pose_->Name());
+  return Ok();
+}
+
+Status GrblMotor::Reconnect() {
+  ++reconnects_;
+  auto log = Log("motion");
+  port_.reset();
+  outstanding_.clear();
+  Error last = Fail(ErrorCode::kFault, "no attempt made");
+  double backoff_s = config_.retry_backoff_s;
+  const int attempts = std::max(1, config_.retries);
+  for (int attempt = 1; attempt <= attempts; ++attempt) {
+    // A replugged board needs time to enumerate again; wait before every attempt.
+    auto until = After(Seconds(backoff_s));
+    while (Clock::now() < until) {
+      if (SerialInterruptRequested()) return Fail(ErrorCode::kInterrupted, "interrupted while reconnecting");
+      std::this_thread::sleep_for(std::min<Clock::duration>(until - Clock::now(), std::chrono::milliseconds(20)));
+    }
+    backoff_s *= 2;
+    Status st = OpenPort();
+    if (st.ok()) st = WaitForBannerOrReset();
+    if (st.ok()) {
+      auto s = QueryStatus();
+      st = s.ok() ? ReadSettings() : Status(s.error());
+    }
+    if (st.ok()) {
+      st = AfterReconnect();
+      if (st.ok()) {
+        log->warn("grbl port={} reconnected (attempt {} of {}) after_reconnect={}", selector_.Describe(),
+                  attempt, attempts, config_.after_reconnect);
+        return Ok();
+      }
+      if (!PortLost(st.error()) && st.error().code != ErrorCode::kTimeout) {
+        if (fault_.empty()) fault_ = st.error().message;
+        return st;
+      }
+    }
+    if (st.error().code == ErrorCode::kInterrupted) return st;
+    last = st.error();
+    log->warn("grbl port={} reconnect attempt {} of {} failed: {}", selector_.Describe(), attempt, attempts,
+              last.message);
+    port_.reset();
+  }
+  fault_ = fmt::format("the port did not come back after {} attempts ({})", attempts, last.message);
+  return Fail(ErrorCode::kFault, fault_);
+}
+
+std::unique_ptr<Motor> MakeGrblMotor(const MotorConfig& config) {
+  return std::make_unique<GrblMotor>(config);
+}
+
+}  // namespace rig

@@ -1,0 +1,345 @@
+// Speed against accuracy of every reflectance-model choice on the same data.
+#include "process/evaluate/evaluate.h"
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include <fmt/format.h>
+
+#include "config/log.h"
+#include "process/evaluate/plot.h"
+
+namespace rig {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
+
+double Since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+// Σ over pixels and channels of (a·s − t)² and of t², optionally on a pixel mask.
+struct ErrorSum {
+  double err = 0, ref = 0;
+  void Add(const cv::Mat& estimate, double scale, const cv::Mat& truth, const cv::Mat& mask) {
+    for (int y = 0; y < truth.rows; ++y) {
+      const float* e = estimate.ptr<float>(y);
+      const float* t = truth.ptr<float>(y);
+      const uint8_t* m = mask.empty() ? nullptr : mask.ptr<uint8_t>(y);
+      for (int x = 0; x < truth.cols; ++x) {
+        if (m && !m[x]) continue;
+        for (int c = 0; c < 3; ++c) {
+          const double d = e[3 * x + c] / scale - t[3 * x + c];
+          err += d * d;
+          ref += double(t[3 * x + c]) * t[3 * x + c];
+        }
+      }
+    }
+  }
+  double Relative() const { return ref > 0 ? std::sqrt(err / ref) : kNan; }
+};
+
+struct Candidate {
+  BasisKind basis;
+  FitMethod method;
+  int order;
+};
+
+}  // namespace
+
+std::string MethodResult::Name() const { return basis + "-" + method; }
+
+double MethodResult::Error() const {
+  return std::isfinite(truth_relative) ? truth_relative : loo_relative;
+}
+
+void MarkParetoFronts(std::vector<MethodResult>* rows) {
+  auto front = [&](auto cost, bool MethodResult::*flag) {
+    for (auto& a : *rows) {
+      a.*flag = false;
+      if (!a.supported || !std::isfinite(a.Error())) continue;
+      bool dominated = false;
+      for (const auto& b : *rows) {
+        if (&a == &b || !b.supported || !std::isfinite(b.Error())) continue;
+        const bool no_worse = cost(b) <= cost(a) && b.Error() <= a.Error();
+        const bool better = cost(b) < cost(a) || b.Error() < a.Error();
+        if (no_worse && better) {
+          dominated = true;
+          break;
+        }
+      }
+      a.*flag = !dominated;
+    }
+  };
+  front([](const MethodResult& r) { return r.fit_time_s; }, &MethodResult::pareto_time);
+  front([](const MethodResult& r) { return r.bytes_per_pixel; }, &MethodResult::pareto_storage);
+}
+
+Result<MethodEvaluation> EvaluateMethods(const MethodEvalInput& in) {
+  auto log = Log("evaluate");
+  const size_t n = in.radiance.size();
+  if (n < 2 || in.h_deg.size() != n || in.v_deg.size() != n) {
+    return MakeError(ErrorCode::kInvalidInput, "evaluate", "{} radiance maps for {} poses", n,
+                     in.h_deg.size());
+  }
+  MethodEvaluation out;
+  out.has_truth = static_cast<bool>(in.truth_rho);
+  FitInput fit_in;
+  fit_in.radiance = in.radiance;
+  fit_in.lamp_radiance_rgb = in.lamp_radiance_rgb;
+  fit_in.light_frame = in.light_frame;
+  for (size_t i = 0; i < n; ++i)
+    fit_in.directions.push_back(LightDirection(in.h_deg[i], in.v_deg[i], in.light_frame));
+  fit_in.weights = GridQuadratureWeights(in.h_deg, in.v_deg);
+  const cv::Scalar lamp_bgr(in.lamp_radiance_rgb[2], in.lamp_radiance_rgb[1], in.lamp_radiance_rgb[0]);
+
+  // RMS of the data's ρ: the scale the LOO error is reported against.
+  double sum_sq = 0, count = 0;
+  for (const auto& r : in.radiance) {
+    cv::Mat rho;
+    cv::divide(r, lamp_bgr, rho);
+    sum_sq += cv::norm(rho, cv::NORM_L2SQR);
+    count += static_cast<double>(rho.total() * 3);
+  }
+  const double rho_rms = std::sqrt(sum_sq / count);
+
+  // Truth: the data's scale, the shadow mask, the held-out and outside truth maps.
+  cv::Mat shadowed;  // CV_8U: 1 where the truth is 0 in some channel at some sampled pose
+  std::vector<cv::Mat> held_truth, outside_truth;
+  if (out.has_truth) {
+    double st = 0, tt = 0;
+    shadowed = cv::Mat::zeros(in.radiance[0].size(), CV_8U);
+    for (size_t i = 0; i < n; ++i) {
+      cv::Mat t = in.truth_rho(in.h_deg[i], in.v_deg[i]), rho;
+      cv::divide(in.radiance[i], lamp_bgr, rho);
+      st += rho.dot(t);
+      tt += t.dot(t);
+      for (int y = 0; y < t.rows; ++y)
+        for (int x = 0; x < t.cols; ++x) {
+          const cv::Vec3f v = t.at<cv::Vec3f>(y, x);
+          if (v[0] <= 0 || v[1] <= 0 || v[2] <= 0) shadowed.at<uint8_t>(y, x) = 1;
+        }
+    }
+    out.truth_scale = tt > 0 ? st / tt : 1;
+    out.shadowed_pixels = static_cast<size_t>(cv::countNonZero(shadowed));
+    out.lit_pixels = shadowed.total() - out.shadowed_pixels;
+    for (auto [h, v] : in.held_out) held_truth.push_back(in.truth_rho(h, v));
+    for (auto [h, v] : in.outside) outside_truth.push_back(in.truth_rho(h, v));
+  }
+  cv::Mat lit;
+  if (!shadowed.empty()) lit = shadowed == 0;
+
+  std::vector<Candidate> candidates;
+  for (FitMethod m : {FitMethod::kQuadrature, FitMethod::kLs, FitMethod::kRls})
+    for (int l = 0; l <= in.max_order; ++l) candidates.push_back({BasisKind::kSh, m, l});
+  for (FitMethod m : {FitMethod::kLs, FitMethod::kRls})
+    for (int l = 0; l <= in.max_order; ++l) candidates.push_back({BasisKind::kHsh, m, l});
+  for (FitMethod m : {FitMethod::kLs, FitMethod::kRls})
+    for (int l = 1; l <= 4; ++l) candidates.push_back({BasisKind::kPtm, m, l});
+
+  const double megapixels = in.radiance[0].total() / 1e6;
+  for (const auto& c : candidates) {
+    MethodResult r;
+    r.basis = BasisKindName(c.basis);
+    r.method = FitMethodName(c.method);
+    r.order = c.order;
+    r.terms = Basis::SizeFor(c.basis, c.order);
+    r.bytes_per_pixel = 3.0 * r.terms * in.bytes_per_coefficient;
+    r.fit_time_s = r.render_s_per_mp = r.condition = r.loo_relative = kNan;
+    r.truth_relative = r.truth_relative_lit = r.truth_relative_shadowed = r.extrapolation_relative = kNan;
+    FitOptions o = in.selection;
+    o.basis = c.basis;
+    o.method = c.method;
+    o.order = c.order;
+    o.max_order = std::max(c.order, 0);
+    // Only this order: the selection table of the automatic fit covers the others.
+    auto fit = FitModel(fit_in, o);
+    if (!fit.ok()) {
+      r.refusal = fit.error().message;
+      out.rows.push_back(r);
+      continue;
+    }
+    r.supported = true;
+    r.fit_time_s = fit->fit_time_s;
+    r.condition = fit->model.info().condition;
+    r.loo_relative = fit->model.info().loo_rmse / rho_rms;
+    // Render time: ρ for every pixel at three lamp positions.
+    const auto t0 = Clock::now();
+    for (size_t k = 0; k < 3; ++k) {
+      const size_t i = k * (n - 1) / 2;
+      cv::Mat rho = fit->model.EvaluateRho(fit_in.directions[i]);
+      (void)rho;
+    }
+    r.render_s_per_mp = Since(t0) / 3 / megapixels;
+    if (out.has_truth) {
+      ErrorSum all, sh, li, ex;
+      for (size_t k = 0; k < in.held_out.size(); ++k) {
+        const auto [h, v] = in.held_out[k];
+        cv::Mat rho = fit->model.EvaluateRho(LightDirection(h, v, in.light_frame));
+        all.Add(rho, out.truth_scale, held_truth[k], cv::Mat());
+        sh.Add(rho, out.truth_scale, held_truth[k], shadowed);
+        li.Add(rho, out.truth_scale, held_truth[k], lit);
+      }
+      for (size_t k = 0; k < in.outside.size(); ++k) {
+        const auto [h, v] = in.outside[k];
+        ex.Add(fit->model.EvaluateRho(LightDirection(h, v, in.light_frame)), out.truth_scale,
+               outside_truth[k], cv::Mat());
+      }
+      r.truth_relative = all.Relative();
+      r.truth_relative_shadowed = sh.Relative();
+      r.truth_relative_lit = li.Relative();
+      r.extrapolation_relative = ex.Relative();
+    }
+    log->debug("{} order {}: fit {:.3f} s, LOO {:.4f}, truth {:.4f}", r.Name(), r.order,
+               r.fit_time_s, r.loo_relative, r.truth_relative);
+    out.rows.push_back(r);
+  }
+
+  // The automatic choice, with the session's own settings.
+  auto chosen = FitModel(fit_in, in.selection);
+  if (chosen.ok()) {
+    const std::string basis = BasisKindName(in.selection.basis), method = FitMethodName(in.selection.method);
+    out.selected = fmt::format("{}-{} order {}", basis, method, chosen->selection.order);
+    for (auto& r : out.rows)
+      r.selected = r.basis == basis && r.method == method && r.order == chosen->selection.order;
+  } else {
+    out.selected = "none: " + chosen.error().message;
+  }
+  MarkParetoFronts(&out.rows);
+  return out;
+}
+
+namespace {
+
+std::string Num(double v, const char* fmt_spec = "{:.4g}") {
+  return std::isfinite(v) ? fmt::format(fmt::runtime(fmt_spec), v) : "";
+}
+
+// Round-trip precision for the CSV (its readers compare values).
+std::string NumFull(double v) { return std::isfinite(v) ? fmt::format("{}", v) : ""; }
+
+}  // namespace
+
+std::string MethodsCsv(const MethodEvaluation& e) {
+  std::string s =
+      "basis,method,order,terms,supported,fit_time_s,render_s_per_mp,bytes_per_pixel,condition,"
+      "loo_relative_rmse,truth_relative_rmse,truth_relative_rmse_shadowed,"
+      "truth_relative_rmse_lit,extrapolation_relative_rmse,pareto_time,pareto_storage,selected,"
+      "refusal\n";
+  for (const auto& r : e.rows) {
+    std::string refusal = r.refusal;
+    for (char& ch : refusal)
+      if (ch == '"') ch = '\'';
+    s += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},\"{}\"\n", r.basis,
+                     r.method, r.order, r.terms, r.supported ? 1 : 0, NumFull(r.fit_time_s),
+                     NumFull(r.render_s_per_mp), r.bytes_per_pixel, NumFull(r.condition),
+                     NumFull(r.loo_relative), NumFull(r.truth_relative), NumFull(r.truth_relative_shadowed),
+                     NumFull(r.truth_relative_lit), NumFull(r.extrapolation_relative), r.pareto_time ? 1 : 0,
+                     r.pareto_storage ? 1 : 0, r.selected ? 1 : 0, refusal);
+  }
+  return s;
+}
+
+std::string MethodsMarkdown(const MethodEvaluation& e) {
+  std::string s =
+      "| model | order | terms | fit s | render s/MP | bytes/px | cond | LOO rel. | truth rel. "
+      "(shadowed / lit) | beyond region | front |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const auto& r : e.rows) {
+    if (!r.supported) {
+      s += fmt::format("| {} | {} | {} | refused: {} |||||||\n", r.Name(), r.order, r.terms, r.refusal);
+      continue;
+    }
+    std::string front = r.selected ? "**selected** " : "";
+    if (r.pareto_time) front += "time ";
+    if (r.pareto_storage) front += "storage";
+    s += fmt::format("| {}{}{} | {} | {} | {:.4f} | {:.4f} | {:g} | {} | {} | {} ({} / {}) | {} | {} |\n",
+                     r.selected ? "**" : "", r.Name(), r.selected ? "**" : "", r.order, r.terms,
+                     r.fit_time_s, r.render_s_per_mp, r.bytes_per_pixel, Num(r.condition, "{:.3g}"),
+                     Num(r.loo_relative), Num(r.truth_relative), Num(r.truth_relative_shadowed),
+                     Num(r.truth_relative_lit), Num(r.extrapolation_relative), front);
+  }
+  return s;
+}
+
+namespace {
+
+// One series per method (its orders in order), the fronts ringed, the selection highlighted.
+cv::Mat ChartAgainst(const MethodEvaluation& e, bool storage) {
+  std::vector<PlotSeries> series;
+  std::vector<PlotMarker> markers;
+  for (const auto& r : e.rows) {
+    if (!r.supported) continue;
+    auto it = std::find_if(series.begin(), series.end(), [&](const PlotSeries& s) { return s.label == r.Name(); });
+    if (it == series.end()) {
+      series.push_back({r.Name(), {}, {}, {}, true});
+      it = series.end() - 1;
+    }
+    it->x.push_back(storage ? r.bytes_per_pixel : r.fit_time_s);
+    it->y.push_back(r.Error());
+    it->point_labels.push_back(std::to_string(r.order));
+    if (storage ? r.pareto_storage : r.pareto_time)
+      markers.push_back({it->x.back(), r.Error(), PlotMarker::Style::kRing, {0, 0, 0}, "Pareto front"});
+    if (r.selected)
+      markers.push_back({it->x.back(), r.Error(), PlotMarker::Style::kBigRing, {0, 0, 230},
+                         "selected: " + e.selected});
+  }
+  PlotOptions o;
+  o.title = storage ? "Error against storage" : "Error against fit time";
+  o.x_label = storage ? "bytes per pixel (3 colours)" : "fit time (s)";
+  o.y_label = e.has_truth ? "relative RMS error vs truth, held-out lamps" : "relative LOO RMS error";
+  o.log_x = !storage;
+  o.log_y = true;
+  o.notes = {"one line per method, numbers = order; black rings: Pareto front; red: the automatic choice"};
+  return DrawPlot(series, markers, o);
+}
+
+}  // namespace
+
+cv::Mat ChartErrorVsTime(const MethodEvaluation& e) { return ChartAgainst(e, false); }
+cv::Mat ChartErrorVsStorage(const MethodEvaluation& e) { return ChartAgainst(e, true); }
+
+cv::Mat ChartConditionVsOrder(const MethodEvaluation& e) {
+  std::vector<PlotSeries> series;
+  for (const char* method : {"quadrature", "ls", "rls"}) {
+    PlotSeries cond{std::string("sh-") + method + " condition", {}, {}, {}, true};
+    PlotSeries err{std::string("sh-") + method + " error x1e4", {}, {}, {}, true};
+    for (const auto& r : e.rows) {
+      if (r.basis != "sh" || r.method != method) continue;
+      cond.x.push_back(r.order);
+      cond.y.push_back(r.supported ? r.condition : kNan);
+      err.x.push_back(r.order);
+      err.y.push_back(r.supported ? r.Error() * 1e4 : kNan);
+    }
+    if (std::string(method) != "rls") series.push_back(cond);
+    series.push_back(err);
+  }
+  PlotOptions o;
+  o.title = "Stability: condition number and error against SH order";
+  o.x_label = "SH order";
+  o.y_label = "condition number / error x 1e4";
+  o.log_y = true;
+  o.notes = {"missing points: refused (rank deficient, or beyond the condition limit)"};
+  return DrawPlot(series, {}, o);
+}
+
+cv::Mat ChartExtrapolation(const MethodEvaluation& e) {
+  std::vector<PlotSeries> series;
+  for (const auto& r : e.rows) {
+    if (!r.supported) continue;
+    auto it = std::find_if(series.begin(), series.end(), [&](const PlotSeries& s) { return s.label == r.Name(); });
+    if (it == series.end()) {
+      series.push_back({r.Name(), {}, {}, {}, true});
+      it = series.end() - 1;
+    }
+    it->x.push_back(r.order);
+    it->y.push_back(r.extrapolation_relative);
+  }
+  PlotOptions o;
+  o.title = "Extrapolation: error at lamps outside the sampled region";
+  o.x_label = "order";
+  o.y_label = "relative RMS error vs truth";
+  o.log_y = true;
+  return DrawPlot(series, {}, o);
+}
+
+}  // namespace rig

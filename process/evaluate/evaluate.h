@@ -1,0 +1,81 @@
+// Speed against accuracy of every reflectance-model choice on the same data: each basis, fit
+// method and order (SH by the paper's quadrature, by least squares and regularised; HSH;
+// PTM) measured for fit time, render time per megapixel, bytes per pixel, leave-one-out error
+// and — when the truth is known (simulated sessions) — error at held-out lamp positions
+// inside the sampled region and beyond it. Marks the Pareto fronts and the model the
+// automatic selection picks.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "config/result.h"
+#include "process/model/fit.h"
+#include "process/model/model.h"
+
+namespace rig {
+
+struct MethodEvalInput {
+  std::vector<cv::Mat> radiance;          // CV_32FC3 BGR, one per pose
+  std::vector<double> h_deg, v_deg;       // the poses' rig angles
+  std::array<double, 3> lamp_radiance_rgb = {1, 1, 1};
+  LightFrameConfig light_frame;
+  // The exact apparent BRDF (CV_32FC3 BGR) at rig angles, when known (simulator truth).
+  std::function<cv::Mat(double h_deg, double v_deg)> truth_rho;
+  std::vector<std::pair<double, double>> held_out;  // lamp angles inside the sampled region
+  std::vector<std::pair<double, double>> outside;   // lamp angles beyond it (extrapolation)
+  int max_order = 6;                      // SH/HSH orders 0..max_order; PTM 1..4
+  int bytes_per_coefficient = 2;          // half (2) or float (4) storage
+  FitOptions selection;                   // the automatic choice (the session's settings)
+};
+
+struct MethodResult {
+  std::string basis, method;
+  int order = 0, terms = 0;
+  bool supported = false;
+  std::string refusal;                    // why not, when !supported
+  double fit_time_s = 0;
+  double render_s_per_mp = 0;             // one lamp, ρ evaluated for every pixel
+  double bytes_per_pixel = 0;
+  double condition = 0;                   // of the design matrix
+  double loo_relative = 0;                // LOO RMS / RMS of ρ (0 when undefined)
+  // Relative RMS error of ρ against the truth (NaN without truth): at held-out lamps inside
+  // the sampled region, the same on pixels shadowed at some sampled pose and on pixels lit at
+  // all of them, and at lamps outside the region.
+  double truth_relative = 0, truth_relative_shadowed = 0, truth_relative_lit = 0;
+  double extrapolation_relative = 0;
+  bool selected = false, pareto_time = false, pareto_storage = false;
+
+  std::string Name() const;               // "sh-rls", "ptm-ls"
+  double Error() const;                   // truth_relative when known, else loo_relative
+};
+
+struct MethodEvaluation {
+  std::vector<MethodResult> rows;
+  bool has_truth = false;
+  std::string selected;                   // "sh-rls order 4"
+  double truth_scale = 1;                 // data ρ = scale · true ρ (HDR units are relative)
+  size_t shadowed_pixels = 0, lit_pixels = 0;
+};
+
+Result<MethodEvaluation> EvaluateMethods(const MethodEvalInput& input);
+
+// Marks the rows on the error-against-fit-time and error-against-storage Pareto fronts.
+void MarkParetoFronts(std::vector<MethodResult>* rows);
+
+std::string MethodsCsv(const MethodEvaluation& e);
+std::string MethodsMarkdown(const MethodEvaluation& e);
+
+// Charts (CV_8UC3): error against fit time, error against bytes per pixel — one line per
+// method, the Pareto front ringed, the selected model highlighted — and condition number and
+// error against order.
+cv::Mat ChartErrorVsTime(const MethodEvaluation& e);
+cv::Mat ChartErrorVsStorage(const MethodEvaluation& e);
+cv::Mat ChartConditionVsOrder(const MethodEvaluation& e);
+cv::Mat ChartExtrapolation(const MethodEvaluation& e);
+
+}  // namespace rig

@@ -1,0 +1,290 @@
+// OpenEXR reading and writing (named float channels + string header attributes), atomic writes.
+#include "process/io/exr_io.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cstdio>
+#include <exception>
+#include <filesystem>
+#include <mutex>
+#include <system_error>
+
+#include <Iex.h>
+#include <ImfChannelList.h>
+#include <ImfCompression.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
+#include <ImfOutputFile.h>
+#include <ImfStringAttribute.h>
+#include <ImfThreading.h>
+
+namespace rig {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Header attributes OpenEXR itself defines; never copied into ExrImage::attributes.
+bool IsStandardAttribute(const std::string& name) {
+  static const char* kStandard[] = {"channels",         "compression", "dataWindow",
+                                    "displayWindow",    "lineOrder",   "pixelAspectRatio",
+                                    "screenWindowCenter", "screenWindowWidth"};
+  for (const char* s : kStandard) {
+    if (name == s) return true;
+  }
+  return false;
+}
+
+std::string TempPathFor(const std::string& path) {
+  static std::atomic<unsigned> counter{0};
+  fs::path p(path);
+  std::string name = "." + p.filename().string() + ".tmp." + std::to_string(::getpid()) + "." +
+                     std::to_string(counter.fetch_add(1));
+  return (p.parent_path() / name).string();
+}
+
+// Flushes a finished file to disk so that the rename publishes complete contents.
+void SyncFile(const std::string& path) {
+  int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return;
+  ::fsync(fd);
+  ::close(fd);
+}
+
+// The OpenEXR global thread pool: OpenEXR uses it for line-block (de)compression. Setting it
+// is not free (threads are created), so it is changed only when the count changes.
+void EnsureGlobalThreads(int threads) {
+  static std::mutex mutex;
+  static int current = -1;
+  std::lock_guard<std::mutex> lock(mutex);
+  if (threads != current) {
+    Imf::setGlobalThreadCount(threads);
+    current = threads;
+  }
+}
+
+}  // namespace
+
+Status WriteExrStriped(const std::string& path, int width, int height,
+                       const std::vector<std::string>& channel_names,
+                       const std::map<std::string, std::string>& attributes, ExrPixelType type,
+                       int threads, const ExrStripeFill& fill) {
+  if (width <= 0 || height <= 0) {
+    return MakeError(ErrorCode::kInvalidInput, path, "cannot write an empty image ({}x{})", width,
+                     height);
+  }
+  if (channel_names.empty()) {
+    return MakeError(ErrorCode::kInvalidInput, path, "no channels to write");
+  }
+  const std::string tmp = TempPathFor(path);
+  try {
+    threads = std::max(threads, 1);
+    EnsureGlobalThreads(threads);
+    // ZIP on 16-line blocks: blocks compress independently, so OpenEXR spreads them over the
+    // thread pool; ZIPS (one line per block) compresses worse and is not faster.
+    Imf::Header header(width, height, 1.0f, Imath::V2f(0, 0), 1.0f, Imf::INCREASING_Y,
+                       Imf::ZIP_COMPRESSION);
+    const Imf::PixelType pixel = type == ExrPixelType::kHalf ? Imf::HALF : Imf::FLOAT;
+    for (const auto& name : channel_names) header.channels().insert(name, Imf::Channel(pixel));
+    for (const auto& [key, value] : attributes) {
+      if (IsStandardAttribute(key)) {
+        return MakeError(ErrorCode::kInvalidInput, path,
+                         "attribute name '{}' is reserved by OpenEXR", key);
+      }
+      header.insert(key, Imf::StringAttribute(value));
+    }
+    // Stripes of 64 lines (four ZIP blocks, compressed in parallel), interleaved, in two
+    // buffers reused for every stripe: no image-sized temporaries (fresh memory costs a page
+    // fault per 4 KiB, which on a virtual machine is most of a write's time). OpenEXR does not
+    // convert float to half on output: OpenCV's CV_16F has the same IEEE binary16 layout as
+    // Imath's half, and converts with SIMD.
+    constexpr int kStripe = 64;
+    const int nch = static_cast<int>(channel_names.size());
+    const int row = width * nch;
+    cv::Mat stripe_f(kStripe, row, CV_32F), stripe_h;
+    if (type == ExrPixelType::kHalf) stripe_h.create(kStripe, row, CV_16F);
+    const cv::Mat& buffer = type == ExrPixelType::kHalf ? stripe_h : stripe_f;
+    const size_t elem = buffer.elemSize();
+    {
+      Imf::OutputFile out(tmp.c_str(), header, threads);
+      for (int y0 = 0; y0 < height; y0 += kStripe) {
+        const int y1 = std::min(height, y0 + kStripe);
+        fill(y0, y1, stripe_f.ptr<float>());
+        if (type == ExrPixelType::kHalf) {
+          stripe_f.rowRange(0, y1 - y0).convertTo(stripe_h.rowRange(0, y1 - y0), CV_16F);
+        }
+        // OpenEXR addresses (x, y) as base + x * xStride + y * yStride: the base is set so that
+        // line y0 lands on the stripe's first row.
+        char* base = const_cast<char*>(reinterpret_cast<const char*>(buffer.data)) -
+                     static_cast<ptrdiff_t>(y0) * static_cast<ptrdiff_t>(buffer.step[0]);
+        Imf::FrameBuffer fb;
+        for (int i = 0; i < nch; ++i) {
+          fb.insert(channel_names[i], Imf::Slice(pixel, base + i * elem, nch * elem, buffer.step[0]));
+        }
+        out.setFrameBuffer(fb);
+        out.writePixels(y1 - y0);
+      }
+    }
+    SyncFile(tmp);
+    std::error_code ec;
+    fs::rename(tmp, path, ec);
+    if (ec) {
+      fs::remove(tmp, ec);
+      return MakeError(ErrorCode::kIo, path, "cannot move the written file into place: {}",
+                       ec.message());
+    }
+  } catch (const Iex::BaseExc& e) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    return MakeError(ErrorCode::kIo, path, "cannot write EXR: {}", e.what());
+  } catch (const std::exception& e) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    return MakeError(ErrorCode::kIo, path, "cannot write EXR: {}", e.what());
+  }
+  return Ok();
+}
+
+Status WriteExr(const std::string& path, const ExrImage& image, ExrPixelType type,
+                int threads) {
+  if (image.width <= 0 || image.height <= 0) {
+    return MakeError(ErrorCode::kInvalidInput, path, "cannot write an empty image ({}x{})",
+                     image.width, image.height);
+  }
+  if (image.channel_names.size() != image.channels.size() || image.channels.empty()) {
+    return MakeError(ErrorCode::kInvalidInput, path,
+                     "{} channel names for {} channels (need at least one, one name each)",
+                     image.channel_names.size(), image.channels.size());
+  }
+  for (size_t i = 0; i < image.channels.size(); ++i) {
+    const cv::Mat& c = image.channels[i];
+    if (c.type() != CV_32FC1 || c.cols != image.width || c.rows != image.height) {
+      return MakeError(ErrorCode::kInvalidInput, path,
+                       "channel '{}' must be CV_32FC1 {}x{} (is type {} {}x{})",
+                       image.channel_names[i], image.width, image.height, c.type(), c.cols,
+                       c.rows);
+    }
+  }
+  const int nch = static_cast<int>(image.channels.size());
+  return WriteExrStriped(path, image.width, image.height, image.channel_names, image.attributes,
+                         type, threads, [&](int y0, int y1, float* out) {
+                           for (int y = y0; y < y1; ++y) {
+                             float* o = out + size_t(y - y0) * image.width * nch;
+                             for (int i = 0; i < nch; ++i) {
+                               const float* src = image.channels[i].ptr<float>(y);
+                               for (int x = 0; x < image.width; ++x) o[x * nch + i] = src[x];
+                             }
+                           }
+                         });
+}
+
+Result<std::map<std::string, std::string>> ReadExrAttributes(const std::string& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) return MakeError(ErrorCode::kNotFound, path, "no such file");
+  try {
+    Imf::InputFile in(path.c_str(), 1);
+    std::map<std::string, std::string> out;
+    for (auto it = in.header().begin(); it != in.header().end(); ++it) {
+      if (IsStandardAttribute(it.name())) continue;
+      if (const auto* s = dynamic_cast<const Imf::StringAttribute*>(&it.attribute())) {
+        out[it.name()] = s->value();
+      }
+    }
+    return out;
+  } catch (const std::exception& e) {
+    return MakeError(ErrorCode::kCorrupt, path, "cannot read EXR header: {}", e.what());
+  }
+}
+
+Result<ExrImage> ReadExr(const std::string& path, int threads) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) {
+    return MakeError(ErrorCode::kNotFound, path, "no such file");
+  }
+  try {
+    threads = std::max(threads, 1);
+    EnsureGlobalThreads(threads);
+    Imf::InputFile in(path.c_str(), threads);
+    const Imf::Header& header = in.header();
+    const Imath::Box2i dw = header.dataWindow();
+    ExrImage image;
+    image.width = dw.max.x - dw.min.x + 1;
+    image.height = dw.max.y - dw.min.y + 1;
+    if (image.width <= 0 || image.height <= 0) {
+      return MakeError(ErrorCode::kCorrupt, path, "empty data window");
+    }
+    Imf::FrameBuffer fb;
+    for (auto it = header.channels().begin(); it != header.channels().end(); ++it) {
+      if (it.channel().xSampling != 1 || it.channel().ySampling != 1) {
+        return MakeError(ErrorCode::kUnsupported, path, "channel '{}' is subsampled",
+                         it.name());
+      }
+      cv::Mat m(image.height, image.width, CV_32FC1);
+      // The slice base is shifted so that the data window's origin lands on m(0, 0).
+      char* base = reinterpret_cast<char*>(m.ptr<float>()) -
+                   (static_cast<ptrdiff_t>(dw.min.x) +
+                    static_cast<ptrdiff_t>(dw.min.y) * image.width) *
+                       static_cast<ptrdiff_t>(sizeof(float));
+      fb.insert(it.name(), Imf::Slice(Imf::FLOAT, base, sizeof(float),
+                                      sizeof(float) * image.width, 1, 1, 0.0));
+      image.channel_names.push_back(it.name());
+      image.channels.push_back(m);
+    }
+    in.setFrameBuffer(fb);
+    in.readPixels(dw.min.y, dw.max.y);
+    for (auto it = header.begin(); it != header.end(); ++it) {
+      if (IsStandardAttribute(it.name())) continue;
+      if (const auto* s = dynamic_cast<const Imf::StringAttribute*>(&it.attribute())) {
+        image.attributes[it.name()] = s->value();
+      }
+    }
+    return image;
+  } catch (const Iex::BaseExc& e) {
+    return MakeError(ErrorCode::kCorrupt, path, "cannot read EXR: {}", e.what());
+  } catch (const std::exception& e) {
+    return MakeError(ErrorCode::kIo, path, "cannot read EXR: {}", e.what());
+  }
+}
+
+Status WriteRgbExr(const std::string& path, const cv::Mat& bgr,
+                   const std::map<std::string, std::string>& attributes, ExrPixelType type,
+                   int threads) {
+  if (bgr.type() != CV_32FC3 || bgr.empty()) {
+    return MakeError(ErrorCode::kInvalidInput, path,
+                     "a radiance image must be a non-empty CV_32FC3 (is type {})", bgr.type());
+  }
+  ExrImage image;
+  image.width = bgr.cols;
+  image.height = bgr.rows;
+  std::vector<cv::Mat> planes;
+  cv::split(bgr, planes);
+  image.channel_names = {"B", "G", "R"};
+  image.channels = planes;
+  image.attributes = attributes;
+  return WriteExr(path, image, type, threads);
+}
+
+Result<cv::Mat> ReadRgbExr(const std::string& path, std::map<std::string, std::string>* attributes,
+                           int threads) {
+  RIG_ASSIGN_OR_RETURN(ExrImage image, ReadExr(path, threads));
+  cv::Mat planes[3];
+  const char* kNames[3] = {"B", "G", "R"};
+  for (int c = 0; c < 3; ++c) {
+    for (size_t i = 0; i < image.channel_names.size(); ++i) {
+      if (image.channel_names[i] == kNames[c]) planes[c] = image.channels[i];
+    }
+    if (planes[c].empty()) {
+      return MakeError(ErrorCode::kInvalidInput, path, "no '{}' channel (an RGB EXR is needed)",
+                       kNames[c]);
+    }
+  }
+  cv::Mat bgr;
+  cv::merge(planes, 3, bgr);
+  if (attributes) *attributes = std::move(image.attributes);
+  return bgr;
+}
+
+}  // namespace rig

@@ -1,0 +1,578 @@
+// Quadrature / least squares / regularised least squares fits as one shared matrix, LOO
+// order selection from the Gram matrix, weighted solves for pixels with missing samples.
+#include "process/model/fit.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <numbers>
+#include <set>
+
+#include <Eigen/Dense>
+#include <Eigen/SVD>
+
+namespace rig {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double SinceS(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// Penalty weights l(l+1) of the terms.
+Eigen::VectorXd PenaltyWeights(const Basis& basis) {
+  auto deg = basis.Degrees();
+  Eigen::VectorXd d(basis.size());
+  for (int k = 0; k < basis.size(); ++k) d(k) = deg[k] * (deg[k] + 1.0);
+  return d;
+}
+
+double Condition(const Eigen::VectorXd& singular) {
+  if (singular.size() == 0) return std::numeric_limits<double>::infinity();
+  const double smax = singular.maxCoeff(), smin = singular.minCoeff();
+  if (smin <= smax * 1e-15) return std::numeric_limits<double>::infinity();
+  return smax / smin;
+}
+
+}  // namespace
+
+const char* FitMethodName(FitMethod m) {
+  switch (m) {
+    case FitMethod::kQuadrature: return "quadrature";
+    case FitMethod::kLs: return "ls";
+    case FitMethod::kRls: return "rls";
+  }
+  return "?";
+}
+
+const char* FitSpaceName(FitSpace s) {
+  switch (s) {
+    case FitSpace::kLinear: return "linear";
+    case FitSpace::kSrgb: return "srgb";
+    case FitSpace::kLog: return "log";
+  }
+  return "?";
+}
+
+Result<FitMethod> ParseFitMethod(const std::string& name) {
+  if (name == "quadrature") return FitMethod::kQuadrature;
+  if (name == "ls") return FitMethod::kLs;
+  if (name == "rls") return FitMethod::kRls;
+  return MakeError(ErrorCode::kInvalidInput, "method",
+                   "unknown fit method '{}' (quadrature, ls or rls)", name);
+}
+
+Result<FitSpace> ParseFitSpace(const std::string& name) {
+  if (name == "linear") return FitSpace::kLinear;
+  if (name == "srgb") return FitSpace::kSrgb;
+  if (name == "log") return FitSpace::kLog;
+  return MakeError(ErrorCode::kInvalidInput, "space", "unknown fit space '{}' (linear, srgb or log)",
+                   name);
+}
+
+float SrgbEncode(float x) {
+  const float a = std::fabs(x);
+  const float e = a <= 0.0031308f ? 12.92f * a : 1.055f * std::pow(a, 1.0f / 2.4f) - 0.055f;
+  return std::copysign(e, x);
+}
+
+float SrgbDecode(float y) {
+  const float a = std::fabs(y);
+  const float l = a <= 0.04045f ? a / 12.92f : std::pow((a + 0.055f) / 1.055f, 2.4f);
+  return std::copysign(l, y);
+}
+
+float FitTransform::Forward(float rho) const {
+  switch (space) {
+    case FitSpace::kLinear: return rho;
+    case FitSpace::kSrgb: return SrgbEncode(rho);
+    case FitSpace::kLog:
+      return static_cast<float>(std::log(std::max(0.0, static_cast<double>(rho)) + log_epsilon));
+  }
+  return rho;
+}
+
+float FitTransform::Inverse(float y) const {
+  switch (space) {
+    case FitSpace::kLinear: return y;
+    case FitSpace::kSrgb: return SrgbDecode(y);
+    case FitSpace::kLog: return static_cast<float>(std::exp(static_cast<double>(y)) - log_epsilon);
+  }
+  return y;
+}
+
+// The transcendental transforms go through OpenCV's vectorised log/exp on the linear part
+// of the sRGB curve's complement; a scalar pow per value would cost 10x the matrix product.
+void FitTransform::ForwardInPlace(float* data, size_t n) const {
+  if (space == FitSpace::kLinear || n == 0) return;
+  cv::Mat m(1, static_cast<int>(n), CV_32F, data);
+  if (space == FitSpace::kLog) {
+    cv::max(m, 0.0, m);
+    m += log_epsilon;
+    cv::log(m, m);
+    return;
+  }
+  // sRGB: 1.055·exp(ln(x)/2.4) - 0.055 above the knee, 12.92·x below (odd extension).
+  cv::Mat a = cv::abs(m), l;
+  cv::max(a, 1e-30, l);
+  cv::log(l, l);
+  l *= 1.0 / 2.4;
+  cv::exp(l, l);
+  l = l * 1.055 - 0.055;
+  float* lp = l.ptr<float>();
+  const float* ap = a.ptr<float>();
+  for (size_t i = 0; i < n; ++i) {
+    const float e = ap[i] <= 0.0031308f ? 12.92f * ap[i] : lp[i];
+    data[i] = data[i] < 0 ? -e : e;
+  }
+}
+
+void FitTransform::InverseInPlace(float* data, size_t n) const {
+  if (space == FitSpace::kLinear || n == 0) return;
+  cv::Mat m(1, static_cast<int>(n), CV_32F, data);
+  if (space == FitSpace::kLog) {
+    cv::exp(m, m);
+    m -= log_epsilon;
+    return;
+  }
+  cv::Mat a = cv::abs(m), l;
+  l = (a + 0.055) * (1.0 / 1.055);
+  cv::max(l, 1e-30, l);
+  cv::log(l, l);
+  l *= 2.4;
+  cv::exp(l, l);
+  float* lp = l.ptr<float>();
+  const float* ap = a.ptr<float>();
+  for (size_t i = 0; i < n; ++i) {
+    const float v = ap[i] <= 0.04045f ? ap[i] / 12.92f : lp[i];
+    data[i] = data[i] < 0 ? -v : v;
+  }
+}
+
+Result<FitOptions> FitOptionsFromConfig(const ProcessConfig& p) {
+  FitOptions o;
+  RIG_ASSIGN_OR_RETURN(o.basis, ParseBasisKind(p.basis));
+  RIG_ASSIGN_OR_RETURN(o.method, ParseFitMethod(p.fit_method));
+  RIG_ASSIGN_OR_RETURN(o.transform.space, ParseFitSpace(p.fit_space));
+  o.order = p.order;
+  o.max_order = p.max_order;
+  o.order_tolerance = p.order_tolerance;
+  o.max_condition = p.max_condition_number;
+  o.threads = p.threads;
+  return o;
+}
+
+Result<Projector> BuildProjector(const Basis& basis, const std::vector<Vec3>& dirs,
+                                 const std::vector<double>& weights, FitMethod method,
+                                 double lambda_relative, double max_condition) {
+  const int n = static_cast<int>(dirs.size());
+  const int k = basis.size();
+  const std::string where = fmt::format("{} order {} ({} terms, {} poses)", basis.name(),
+                                        basis.order(), k, n);
+  if (n == 0) return MakeError(ErrorCode::kInvalidInput, where, "no samples");
+  Projector pr;
+  pr.basis = basis;
+  pr.method = method;
+  const Eigen::MatrixXd b = basis.Design(dirs);
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(b, Eigen::ComputeThinU | Eigen::ComputeThinV);
+  const Eigen::VectorXd s = svd.singularValues();
+  pr.condition = k > n ? std::numeric_limits<double>::infinity() : Condition(s);
+  const double tol = s.size() ? s(0) * 1e-12 * std::max(n, k) : 0;
+  pr.rank = 0;
+  for (int i = 0; i < s.size(); ++i) pr.rank += s(i) > tol;
+
+  switch (method) {
+    case FitMethod::kQuadrature: {
+      if (static_cast<int>(weights.size()) != n) {
+        return MakeError(ErrorCode::kInvalidInput, where, "{} quadrature weights for {} poses",
+                         weights.size(), n);
+      }
+      Eigen::VectorXd w(n);
+      for (int i = 0; i < n; ++i) w(i) = weights[i];
+      pr.p = b.transpose() * w.asDiagonal();
+      pr.solved_condition = pr.condition;
+      break;
+    }
+    case FitMethod::kLs: {
+      if (k > n - 1) {
+        return MakeError(ErrorCode::kInvalidInput, where,
+                         "least squares needs fewer terms than poses (at least one pose to spare "
+                         "for validation); use a lower order or --method rls");
+      }
+      if (pr.rank < k || pr.condition > max_condition) {
+        return MakeError(ErrorCode::kInvalidInput, where,
+                         "the lamp directions cannot support this order: condition number {:.3g} "
+                         "exceeds the limit {:.3g} (rank {} of {}); use a lower order or "
+                         "--method rls",
+                         pr.condition, max_condition, pr.rank, k);
+      }
+      pr.p = svd.matrixV() * s.cwiseInverse().asDiagonal() * svd.matrixU().transpose();
+      pr.solved_condition = pr.condition;
+      break;
+    }
+    case FitMethod::kRls: {
+      const Eigen::MatrixXd btb = b.transpose() * b;
+      const double scale = std::max(btb.trace() / k, 1e-300);
+      pr.lambda_relative = lambda_relative;
+      pr.lambda = lambda_relative * scale;
+      Eigen::MatrixXd a = btb;
+      a.diagonal() += pr.lambda * PenaltyWeights(basis);
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(a, Eigen::EigenvaluesOnly);
+      const double emin = eig.eigenvalues().minCoeff(), emax = eig.eigenvalues().maxCoeff();
+      pr.solved_condition =
+          emin > emax * 1e-30 ? std::sqrt(emax / emin) : std::numeric_limits<double>::infinity();
+      if (!(pr.solved_condition <= max_condition)) {
+        return MakeError(ErrorCode::kInvalidInput, where,
+                         "regularised system condition number {:.3g} exceeds the limit {:.3g} "
+                         "(lambda {:.3g}); increase lambda or lower the order",
+                         pr.solved_condition, max_condition, lambda_relative);
+      }
+      pr.p = a.ldlt().solve(b.transpose());
+      break;
+    }
+  }
+  pr.hat = b * pr.p;
+  return pr;
+}
+
+Eigen::MatrixXd LooOperator(const Projector& pr) {
+  const Eigen::Index n = pr.hat.rows();
+  Eigen::MatrixXd m;
+  if (pr.method == FitMethod::kQuadrature) {
+    m = -pr.hat;
+    m.diagonal().setOnes();
+    return m;
+  }
+  m = -pr.hat;
+  m.diagonal().array() += 1.0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double d = 1.0 - pr.hat(i, i);
+    if (d < 1e-6) return Eigen::MatrixXd();
+    m.row(i) /= d;
+  }
+  return m;
+}
+
+double LooMse(const Eigen::MatrixXd& m, const Eigen::MatrixXd& gram, double count) {
+  if (m.size() == 0 || count <= 0) return std::numeric_limits<double>::infinity();
+  // Σ over pixels |M y|² = trace(M G Mᵀ).
+  const double sum = ((m * gram).array() * m.array()).sum();
+  return std::max(0.0, sum) / (count * static_cast<double>(m.rows()));
+}
+
+std::vector<double> GridQuadratureWeights(const std::vector<double>& h_deg,
+                                          const std::vector<double>& v_deg) {
+  auto step = [](std::vector<double> a) {
+    std::sort(a.begin(), a.end());
+    double best = 0;
+    for (size_t i = 1; i < a.size(); ++i) {
+      const double d = a[i] - a[i - 1];
+      if (d > 1e-6 && (best == 0 || d < best)) best = d;
+    }
+    return best > 0 ? best : 10.0;
+  };
+  const double kRad = std::numbers::pi / 180.0;
+  const double dh = step(h_deg) * kRad, dv = step(v_deg) * kRad;
+  std::vector<double> w(h_deg.size());
+  for (size_t i = 0; i < w.size(); ++i) w[i] = std::cos(v_deg[i] * kRad) * dh * dv;
+  return w;
+}
+
+std::vector<double> UniformHemisphereWeights(size_t count) {
+  return std::vector<double>(count, count ? 2.0 * std::numbers::pi / count : 0.0);
+}
+
+Result<Selection> SelectProjector(const std::vector<Vec3>& dirs,
+                                  const std::vector<double>& weights,
+                                  const Eigen::MatrixXd& gram, double count,
+                                  const FitOptions& o) {
+  const int lo = o.basis == BasisKind::kPtm ? 1 : 0;
+  const int hi_cap = o.basis == BasisKind::kPtm ? 8 : 12;
+  const int hi = std::min(hi_cap, std::max(o.max_order, o.order));
+  if (o.order >= 0 && (o.order < lo || o.order > hi_cap)) {
+    return MakeError(ErrorCode::kInvalidInput, "order",
+                     "order {} is outside {}..{} for basis '{}'", o.order, lo, hi_cap,
+                     BasisKindName(o.basis));
+  }
+  // λ candidates for rls: half-decades relative to trace(BᵀB)/K.
+  std::vector<double> lambdas;
+  if (o.method == FitMethod::kRls) {
+    if (o.lambda >= 0) {
+      lambdas.push_back(o.lambda);
+    } else {
+      for (int e = -16; e <= 2; ++e) lambdas.push_back(std::pow(10.0, e * 0.5));
+    }
+  } else {
+    lambdas.push_back(0);
+  }
+
+  Selection sel;
+  std::map<int, Projector> built;
+  for (int order = lo; order <= hi; ++order) {
+    const auto t0 = Clock::now();
+    Basis basis(o.basis, order);
+    OrderReport rep;
+    rep.order = order;
+    rep.terms = basis.size();
+    double best = std::numeric_limits<double>::infinity();
+    std::string last_refusal;
+    for (double lam : lambdas) {
+      auto pr = BuildProjector(basis, dirs, weights, o.method, lam, o.max_condition);
+      if (!pr.ok()) {
+        last_refusal = pr.error().message;
+        continue;
+      }
+      const Eigen::MatrixXd m = LooOperator(*pr);
+      const double mse = LooMse(m, gram, count);
+      rep.condition = pr->condition;
+      if (!(mse < best)) continue;
+      best = mse;
+      rep.supported = true;
+      rep.lambda_relative = pr->lambda_relative;
+      rep.loo_rmse = std::sqrt(mse);
+      rep.solved_condition = pr->solved_condition;
+      built[order] = std::move(*pr);
+    }
+    if (!rep.supported) {
+      rep.refusal = last_refusal.empty() ? "leave-one-out error undefined" : last_refusal;
+      if (rep.condition == 0) {
+        Eigen::JacobiSVD<Eigen::MatrixXd> svd(basis.Design(dirs));
+        rep.condition = basis.size() > static_cast<int>(dirs.size())
+                            ? std::numeric_limits<double>::infinity()
+                            : Condition(svd.singularValues());
+      }
+    } else if (!std::isfinite(rep.loo_rmse)) {
+      rep.supported = false;
+      rep.refusal = "leave-one-out error undefined (a sample fully determines its own fit)";
+    }
+    rep.build_time_s = SinceS(t0);
+    sel.orders.push_back(rep);
+  }
+
+  if (o.order >= 0) {
+    for (const auto& r : sel.orders) {
+      if (r.order != o.order) continue;
+      if (!built.count(o.order)) {
+        return MakeError(ErrorCode::kInvalidInput,
+                         fmt::format("{} order {} ({} terms, {} poses, method {})",
+                                     BasisKindName(o.basis), o.order, r.terms, dirs.size(),
+                                     FitMethodName(o.method)),
+                         "refused: {}", r.refusal);
+      }
+      sel.order = o.order;
+      sel.projector = built[o.order];
+      return sel;
+    }
+  }
+  double best = std::numeric_limits<double>::infinity();
+  for (const auto& r : sel.orders)
+    if (r.supported) best = std::min(best, r.loo_rmse);
+  if (!std::isfinite(best)) {
+    return MakeError(ErrorCode::kInvalidInput, fmt::format("{} poses", dirs.size()),
+                     "no order of basis '{}' can be fitted stably with method {}",
+                     BasisKindName(o.basis), FitMethodName(o.method));
+  }
+  for (const auto& r : sel.orders) {
+    if (r.supported && r.loo_rmse <= best * (1.0 + o.order_tolerance)) {
+      sel.order = r.order;
+      sel.projector = built[r.order];
+      break;
+    }
+  }
+  return sel;
+}
+
+Status BuildSamples(const std::vector<cv::Mat>& radiance, const std::vector<cv::Mat>& valid,
+                    const std::array<double, 3>& e_rgb, const FitTransform& transform,
+                    SampleMatrix* samples, std::vector<uint8_t>* missing) {
+  const size_t n = radiance.size();
+  if (n == 0) return MakeError(ErrorCode::kInvalidInput, "samples", "no radiance maps");
+  const int rows = radiance[0].rows, cols = radiance[0].cols;
+  const size_t pixels = static_cast<size_t>(rows) * cols;
+  for (size_t i = 0; i < n; ++i) {
+    if (radiance[i].type() != CV_32FC3 || radiance[i].rows != rows || radiance[i].cols != cols) {
+      return MakeError(ErrorCode::kInvalidInput, fmt::format("pose {}", i),
+                       "radiance must be CV_32FC3 {}x{} like the first map", cols, rows);
+    }
+    if (!valid.empty() && (valid[i].type() != CV_8UC1 || valid[i].size() != radiance[i].size())) {
+      return MakeError(ErrorCode::kInvalidInput, fmt::format("pose {}", i),
+                       "validity mask must be CV_8UC1 of the radiance map's size");
+    }
+  }
+  if (!valid.empty() && valid.size() != n) {
+    return MakeError(ErrorCode::kInvalidInput, "samples", "{} validity masks for {} maps",
+                     valid.size(), n);
+  }
+  samples->resize(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(pixels * 3));
+  missing->clear();
+  // BGR order in memory; lamp radiance is R, G, B.
+  const float inv[3] = {static_cast<float>(1.0 / e_rgb[2]), static_cast<float>(1.0 / e_rgb[1]),
+                        static_cast<float>(1.0 / e_rgb[0])};
+  for (size_t i = 0; i < n; ++i) {
+    float* out = samples->row(static_cast<Eigen::Index>(i)).data();
+    for (int y = 0; y < rows; ++y) {
+      const float* in = radiance[i].ptr<float>(y);
+      const uint8_t* vm = valid.empty() ? nullptr : valid[i].ptr<uint8_t>(y);
+      float* o = out + static_cast<size_t>(y) * cols * 3;
+      for (int x = 0; x < cols; ++x) {
+        const float b = in[3 * x], g = in[3 * x + 1], r = in[3 * x + 2];
+        const bool ok = (!vm || vm[x]) && std::isfinite(b) && std::isfinite(g) &&
+                        std::isfinite(r) && b >= 0 && g >= 0 && r >= 0;
+        if (!ok) {
+          if (missing->empty()) missing->assign(n * pixels, 0);
+          (*missing)[i * pixels + static_cast<size_t>(y) * cols + x] = 1;
+          o[3 * x] = o[3 * x + 1] = o[3 * x + 2] = 0;
+        } else {
+          o[3 * x] = b * inv[0];
+          o[3 * x + 1] = g * inv[1];
+          o[3 * x + 2] = r * inv[2];
+        }
+      }
+    }
+    transform.ForwardInPlace(out, pixels * 3);
+    if (!missing->empty()) {
+      // Missing samples stay 0 in fit space, whatever the transform maps 0 to.
+      const uint8_t* mrow = missing->data() + i * pixels;
+      for (size_t p = 0; p < pixels; ++p)
+        if (mrow[p]) out[3 * p] = out[3 * p + 1] = out[3 * p + 2] = 0;
+    }
+  }
+  return Ok();
+}
+
+Eigen::MatrixXd SampleGram(const SampleMatrix& y, const std::vector<uint8_t>& missing,
+                           size_t stride, double* count) {
+  const Eigen::Index n = y.rows();
+  const size_t pixels = static_cast<size_t>(y.cols()) / 3;
+  stride = std::max<size_t>(stride, 1);
+  std::vector<Eigen::Index> cols;
+  for (size_t p = 0; p < pixels; p += stride) {
+    bool ok = true;
+    if (!missing.empty()) {
+      for (Eigen::Index i = 0; i < n && ok; ++i) ok = !missing[i * pixels + p];
+    }
+    if (!ok) continue;
+    for (int c = 0; c < 3; ++c) cols.push_back(static_cast<Eigen::Index>(3 * p + c));
+  }
+  *count = static_cast<double>(cols.size());
+  if (stride == 1 && missing.empty()) {
+    return (y.cast<double>() * y.cast<double>().transpose());
+  }
+  // Gather in chunks so that the Gram matrix is a sequence of GEMMs.
+  Eigen::MatrixXd g = Eigen::MatrixXd::Zero(n, n);
+  const size_t chunk = 4096;
+  Eigen::MatrixXd block(n, chunk);
+  for (size_t s = 0; s < cols.size(); s += chunk) {
+    const size_t m = std::min(chunk, cols.size() - s);
+    for (size_t j = 0; j < m; ++j) block.col(j) = y.col(cols[s + j]).cast<double>();
+    g.noalias() += block.leftCols(m) * block.leftCols(m).transpose();
+  }
+  return g;
+}
+
+MissingStats ApplyProjector(const Projector& pr, const std::vector<Vec3>& dirs,
+                            const std::vector<double>& weights, double max_condition,
+                            const SampleMatrix& y, const std::vector<uint8_t>& missing,
+                            SampleMatrix* coeffs, std::vector<uint8_t>* valid_out) {
+  const Eigen::Index n = y.rows();
+  const size_t pixels = static_cast<size_t>(y.cols()) / 3;
+  const int k = pr.basis.size();
+  const Eigen::MatrixXf pf = pr.p.cast<float>();
+  coeffs->resize(k, y.cols());
+  coeffs->noalias() = pf * y;
+  valid_out->assign(pixels, 1);
+  MissingStats stats;
+  if (missing.empty()) return stats;
+
+  const Eigen::MatrixXd b = pr.basis.Design(dirs);
+  Eigen::VectorXd pen = PenaltyWeights(pr.basis) * pr.lambda;
+  // Distinct missing patterns share one reduced projector.
+  std::map<std::string, std::pair<bool, Eigen::MatrixXf>> cache;
+  std::string pattern(static_cast<size_t>(n), '\0');
+  for (size_t p = 0; p < pixels; ++p) {
+    bool any = false;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      pattern[i] = static_cast<char>(missing[i * pixels + p]);
+      any |= pattern[i] != 0;
+    }
+    if (!any) continue;
+    ++stats.pixels_with_missing;
+    auto it = cache.find(pattern);
+    if (it == cache.end()) {
+      std::vector<Eigen::Index> keep;
+      for (Eigen::Index i = 0; i < n; ++i)
+        if (!pattern[i]) keep.push_back(i);
+      bool ok = static_cast<int>(keep.size()) >= k;
+      Eigen::MatrixXf full = Eigen::MatrixXf::Zero(k, n);
+      if (ok) {
+        Eigen::MatrixXd bv(keep.size(), k);
+        for (size_t j = 0; j < keep.size(); ++j) bv.row(j) = b.row(keep[j]);
+        Eigen::MatrixXd pv;
+        if (pr.method == FitMethod::kQuadrature) {
+          pv.resize(k, keep.size());
+          for (size_t j = 0; j < keep.size(); ++j) pv.col(j) = bv.row(j).transpose() * weights[keep[j]];
+        } else {
+          Eigen::MatrixXd a = bv.transpose() * bv;
+          a.diagonal() += pen;
+          Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(a, Eigen::EigenvaluesOnly);
+          const double emin = eig.eigenvalues().minCoeff(), emax = eig.eigenvalues().maxCoeff();
+          ok = emin > 0 && std::sqrt(emax / emin) <= max_condition;
+          if (ok) pv = a.ldlt().solve(bv.transpose());
+        }
+        if (ok) {
+          for (size_t j = 0; j < keep.size(); ++j) full.col(keep[j]) = pv.col(j).cast<float>();
+        }
+      }
+      it = cache.emplace(pattern, std::make_pair(ok, std::move(full))).first;
+    }
+    const auto& [ok, pp] = it->second;
+    for (int c = 0; c < 3; ++c) {
+      const Eigen::Index col = static_cast<Eigen::Index>(3 * p + c);
+      if (ok) {
+        coeffs->col(col).noalias() = pp * y.col(col);
+      } else {
+        coeffs->col(col).setZero();
+      }
+    }
+    if (!ok) {
+      (*valid_out)[p] = 0;
+      ++stats.flagged;
+    }
+  }
+  stats.patterns = cache.size();
+  return stats;
+}
+
+Result<std::array<double, 3>> CalibrateLampRadiance(const std::vector<cv::Mat>& radiance,
+                                                    const std::array<int, 4>& patch,
+                                                    double reflectance) {
+  if (radiance.empty()) return MakeError(ErrorCode::kInvalidInput, "reference patch", "no maps");
+  const cv::Rect r(patch[0], patch[1], patch[2], patch[3]);
+  const cv::Rect image(0, 0, radiance[0].cols, radiance[0].rows);
+  if (r.width <= 0 || r.height <= 0 || (r & image) != r) {
+    return MakeError(ErrorCode::kInvalidInput, "process.reference_patch_px",
+                     "patch [{}, {}, {}, {}] is not inside the {}x{} image", r.x, r.y, r.width,
+                     r.height, image.width, image.height);
+  }
+  std::array<std::vector<double>, 3> per_pose;
+  for (const auto& m : radiance) {
+    const cv::Scalar mean = cv::mean(m(r));
+    for (int c = 0; c < 3; ++c) per_pose[c].push_back(mean[2 - c]);  // BGR -> R, G, B
+  }
+  std::array<double, 3> e{};
+  for (int c = 0; c < 3; ++c) {
+    auto& v = per_pose[c];
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    e[c] = v[v.size() / 2] / reflectance;
+    if (!(e[c] > 0)) {
+      return MakeError(ErrorCode::kInvalidInput, "process.reference_patch_px",
+                       "the reference patch is black in channel {}", "RGB"[c]);
+    }
+  }
+  return e;
+}
+
+}  // namespace rig

@@ -1,0 +1,268 @@
+// Band-streamed model fit: OpenEXR scanline ranges in, the shared matrix, bands out.
+#include "process/model/model_stream.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <memory>
+
+#include <Iex.h>
+#include <ImfChannelList.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
+#include <ImfOutputFile.h>
+#include <ImfStringAttribute.h>
+
+#include "config/log.h"
+#include "process/model/model.h"
+
+namespace rig {
+namespace {
+
+// The maps, open, read band by band into CV_32FC3 BGR and CV_8U validity.
+class BandReader {
+ public:
+  Status Open(const std::vector<std::string>& paths) {
+    for (const auto& p : paths) {
+      if (!std::filesystem::exists(p)) return MakeError(ErrorCode::kNotFound, p, "no such file");
+      auto f = std::make_unique<Imf::InputFile>(p.c_str(), 1);
+      const Imath::Box2i dw = f->header().dataWindow();
+      const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
+      if (files_.empty()) {
+        width_ = w;
+        height_ = h;
+      } else if (w != width_ || h != height_) {
+        return MakeError(ErrorCode::kInvalidInput, p, "size {}x{} differs from {} ({}x{})", w, h,
+                         paths[0], width_, height_);
+      }
+      for (const char* c : {"R", "G", "B"}) {
+        if (!f->header().channels().findChannel(c)) {
+          return MakeError(ErrorCode::kInvalidInput, p, "no '{}' channel", c);
+        }
+      }
+      has_flags_.push_back(f->header().channels().findChannel("flags") != nullptr);
+      origin_.push_back({dw.min.x, dw.min.y});
+      files_.push_back(std::move(f));
+    }
+    return Ok();
+  }
+  int width() const { return width_; }
+  int height() const { return height_; }
+  bool any_flags() const {
+    return std::any_of(has_flags_.begin(), has_flags_.end(), [](bool b) { return b; });
+  }
+
+  // Rows [y0, y1) of every map.
+  void Read(int y0, int y1, std::vector<cv::Mat>* bgr, std::vector<cv::Mat>* valid) {
+    const int rows = y1 - y0;
+    bgr->resize(files_.size());
+    valid->resize(any_flags() ? files_.size() : 0);
+    for (size_t i = 0; i < files_.size(); ++i) {
+      cv::Mat& m = (*bgr)[i];
+      m.create(rows, width_, CV_32FC3);
+      const size_t xs = 3 * sizeof(float), ys = xs * width_;
+      const auto [ox, oy] = origin_[i];
+      char* base = reinterpret_cast<char*>(m.data) - static_cast<ptrdiff_t>(ox) * xs -
+                   static_cast<ptrdiff_t>(oy + y0) * static_cast<ptrdiff_t>(ys);
+      Imf::FrameBuffer fb;
+      fb.insert("B", Imf::Slice(Imf::FLOAT, base, xs, ys));
+      fb.insert("G", Imf::Slice(Imf::FLOAT, base + sizeof(float), xs, ys));
+      fb.insert("R", Imf::Slice(Imf::FLOAT, base + 2 * sizeof(float), xs, ys));
+      cv::Mat flags;
+      if (has_flags_[i]) {
+        flags.create(rows, width_, CV_32F);
+        char* fbase = reinterpret_cast<char*>(flags.data) -
+                      static_cast<ptrdiff_t>(ox) * sizeof(float) -
+                      static_cast<ptrdiff_t>(oy + y0) * width_ * sizeof(float);
+        fb.insert("flags", Imf::Slice(Imf::FLOAT, fbase, sizeof(float), sizeof(float) * width_));
+      }
+      files_[i]->setFrameBuffer(fb);
+      files_[i]->readPixels(oy + y0, oy + y1 - 1);
+      if (!valid->empty()) {
+        (*valid)[i] = has_flags_[i] ? cv::Mat((flags == 0) / 255)
+                                    : cv::Mat(rows, width_, CV_8U, cv::Scalar(1));
+      }
+    }
+  }
+
+ private:
+  std::vector<std::unique_ptr<Imf::InputFile>> files_;
+  std::vector<bool> has_flags_;
+  std::vector<std::pair<int, int>> origin_;
+  int width_ = 0, height_ = 0;
+};
+
+std::string TempPath(const std::string& path) {
+  static std::atomic<unsigned> counter{0};
+  std::filesystem::path p(path);
+  return (p.parent_path() / ("." + p.filename().string() + ".tmp." + std::to_string(::getpid()) +
+                             "." + std::to_string(counter.fetch_add(1))))
+      .string();
+}
+
+}  // namespace
+
+Result<size_t> EstimateSampleBytes(const std::vector<std::string>& paths) {
+  size_t total = 0;
+  for (const auto& p : paths) {
+    try {
+      if (!std::filesystem::exists(p)) return MakeError(ErrorCode::kNotFound, p, "no such file");
+      Imf::InputFile f(p.c_str(), 1);
+      const Imath::Box2i dw = f.header().dataWindow();
+      total += static_cast<size_t>(dw.max.x - dw.min.x + 1) * (dw.max.y - dw.min.y + 1) * 12;
+    } catch (const std::exception& e) {
+      return MakeError(ErrorCode::kCorrupt, p, "cannot read EXR header: {}", e.what());
+    }
+  }
+  return total;
+}
+
+Result<StreamFitOutput> FitModelStreaming(const StreamFitInput& in, const FitOptions& o,
+                                          const std::string& out_path, ExrPixelType type) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const size_t n = in.paths.size();
+  if (n == 0 || in.directions.size() != n) {
+    return MakeError(ErrorCode::kInvalidInput, "fit", "{} maps, {} directions", n,
+                     in.directions.size());
+  }
+  const std::vector<double> weights = in.weights.empty() ? UniformHemisphereWeights(n) : in.weights;
+  const std::string tmp = TempPath(out_path);
+  try {
+    BandReader reader;
+    RIG_TRY(reader.Open(in.paths));
+    const int w = reader.width(), h = reader.height();
+    const int band = std::max(1, in.band_rows);
+
+    // Pass 1: the Gram matrix of evenly spaced bands chooses order and λ.
+    Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(n),
+                                                 static_cast<Eigen::Index>(n));
+    double count = 0;
+    const int bands_total = (h + band - 1) / band;
+    const int bands_sel = std::clamp(in.selection_rows / band, 1, bands_total);
+    std::vector<cv::Mat> bgr, valid;
+    SampleMatrix y;
+    std::vector<uint8_t> missing;
+    for (int s = 0; s < bands_sel; ++s) {
+      const int b = static_cast<int>(static_cast<long>(s) * bands_total / bands_sel);
+      const int y0 = b * band, y1 = std::min(h, y0 + band);
+      reader.Read(y0, y1, &bgr, &valid);
+      RIG_TRY(BuildSamples(bgr, valid, in.lamp_radiance_rgb, o.transform, &y, &missing));
+      double c = 0;
+      gram += SampleGram(y, missing, 1, &c);
+      count += c;
+    }
+    StreamFitOutput out;
+    RIG_ASSIGN_OR_RETURN(out.selection, SelectProjector(in.directions, weights, gram, count, o));
+    const Projector& pr = out.selection.projector;
+    for (const auto& r : out.selection.orders)
+      if (r.order == out.selection.order) out.loo_rmse = r.loo_rmse;
+
+    // The header, as the in-memory fit writes it.
+    ModelInfo info;
+    info.method = o.method;
+    info.transform = o.transform;
+    info.lambda_relative = pr.lambda_relative;
+    info.lamp_radiance_rgb = in.lamp_radiance_rgb;
+    info.light_frame = in.light_frame;
+    info.loo_rmse = out.loo_rmse;
+    info.condition = pr.condition;
+    info.solved_condition = pr.solved_condition;
+    info.lamp_directions = in.directions;
+    info.sample_spacing_deg = SampleSpacingDeg(in.directions);
+    Model header_model(pr.basis, info, w, h);
+    auto attributes = ModelHeaderAttributes(header_model);
+    attributes["flagged_pixels"] = "see the 'valid' channel (streamed fit)";
+    const int k = pr.basis.size();
+    const bool with_valid = reader.any_flags();
+    const Imf::PixelType pixel = type == ExrPixelType::kHalf ? Imf::HALF : Imf::FLOAT;
+    Imf::Header header(w, h, 1.0f, Imath::V2f(0, 0), 1.0f, Imf::INCREASING_Y,
+                       Imf::ZIP_COMPRESSION);
+    for (int t = 0; t < k; ++t)
+      for (char c : {'R', 'G', 'B'})
+        header.channels().insert(CoefficientChannelName(t, c), Imf::Channel(pixel));
+    if (with_valid) header.channels().insert("valid", Imf::Channel(pixel));
+    for (const auto& [key, value] : attributes) header.insert(key, Imf::StringAttribute(value));
+
+    {
+      Imf::OutputFile file(tmp.c_str(), header, 1);
+      SampleMatrix coeffs;
+      std::vector<uint8_t> valid_px;
+      cv::Mat store, valid_store;
+      for (int y0 = 0; y0 < h; y0 += band) {
+        const int y1 = std::min(h, y0 + band), rows = y1 - y0;
+        reader.Read(y0, y1, &bgr, &valid);
+        RIG_TRY(BuildSamples(bgr, valid, in.lamp_radiance_rgb, o.transform, &y, &missing));
+        MissingStats ms = ApplyProjector(pr, in.directions, weights, o.max_condition, y, missing,
+                                         &coeffs, &valid_px);
+        out.missing.pixels_with_missing += ms.pixels_with_missing;
+        out.missing.flagged += ms.flagged;
+        out.missing.patterns += ms.patterns;
+        // Coefficients (k rows of BGR-interleaved band data) in the file's pixel type.
+        cv::Mat as_float(k, static_cast<int>(coeffs.cols()), CV_32F, coeffs.data());
+        size_t elem = sizeof(float);
+        if (type == ExrPixelType::kHalf) {
+          as_float.convertTo(store, CV_16F);
+          elem = 2;
+        } else {
+          store = as_float;
+        }
+        Imf::FrameBuffer fb;
+        const size_t xs = 3 * elem, ys = xs * w;
+        for (int t = 0; t < k; ++t) {
+          char* row = reinterpret_cast<char*>(store.ptr(t)) -
+                      static_cast<ptrdiff_t>(y0) * static_cast<ptrdiff_t>(ys);
+          fb.insert(CoefficientChannelName(t, 'B'), Imf::Slice(pixel, row, xs, ys));
+          fb.insert(CoefficientChannelName(t, 'G'), Imf::Slice(pixel, row + elem, xs, ys));
+          fb.insert(CoefficientChannelName(t, 'R'), Imf::Slice(pixel, row + 2 * elem, xs, ys));
+        }
+        if (with_valid) {
+          cv::Mat v(rows, w, CV_8U, valid_px.data()), vf;
+          v.convertTo(vf, CV_32F);
+          if (type == ExrPixelType::kHalf) {
+            vf.convertTo(valid_store, CV_16F);
+          } else {
+            valid_store = vf;
+          }
+          fb.insert("valid", Imf::Slice(pixel,
+                                        reinterpret_cast<char*>(valid_store.data) -
+                                            static_cast<ptrdiff_t>(y0) * w * elem,
+                                        elem, elem * w));
+        }
+        file.setFrameBuffer(fb);
+        file.writePixels(rows);
+      }
+    }
+    int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd >= 0) {
+      ::fsync(fd);
+      ::close(fd);
+    }
+    std::error_code ec;
+    std::filesystem::rename(tmp, out_path, ec);
+    if (ec) {
+      std::filesystem::remove(tmp, ec);
+      return MakeError(ErrorCode::kIo, out_path, "cannot move the written model into place");
+    }
+    out.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    Log("process")->info("streamed fit {}x{} poses={} order={} terms={} missing_pixels={} "
+                         "flagged={} time_s={:.2f}",
+                         w, h, n, out.selection.order, k, out.missing.pixels_with_missing,
+                         out.missing.flagged, out.time_s);
+    return out;
+  } catch (const Iex::BaseExc& e) {
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    return MakeError(ErrorCode::kIo, out_path, "streamed fit failed: {}", e.what());
+  } catch (const std::exception& e) {
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    return MakeError(ErrorCode::kIo, out_path, "streamed fit failed: {}", e.what());
+  }
+}
+
+}  // namespace rig

@@ -1,0 +1,498 @@
+// Tone mapping: Ward's histogram adjustment with the linear ceiling, a linear mapping, and
+// OpenCV's operators, all ending in one display encoding through a lookup table.
+#include "process/render/tonemap.h"
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numbers>
+
+#include <opencv2/imgproc.hpp>
+#include <opencv2/photo.hpp>
+
+namespace rig {
+namespace {
+
+// Rec. 709 / sRGB primaries, applied to OpenCV's B, G, R order.
+constexpr float kWeightB = 0.0722f, kWeightG = 0.7152f, kWeightR = 0.2126f;
+
+// Float-bit lookup: a positive float's bits shifted right by kLutShift index a table whose
+// entries are 2^(23 - kLutShift) per octave, i.e. evenly spaced in log L (relative step 2^-10).
+constexpr int kLutShift = 13;
+constexpr uint32_t kLutFracMask = (1u << kLutShift) - 1;
+constexpr float kLutFracScale = 1.0f / static_cast<float>(1u << kLutShift);
+
+// One foveal sample per degree: the field of view in samples across, at least 2 each way
+// and never more than the image has.
+cv::Size FovealSize(int cols, int rows, double field_of_view_deg) {
+  const int fw = std::max(2, static_cast<int>(std::lround(field_of_view_deg)));
+  const int fh = std::max(2, static_cast<int>(std::lround(field_of_view_deg * rows / cols)));
+  return cv::Size(std::min(fw, cols), std::min(fh, rows));
+}
+
+inline uint32_t Bits(float v) { return std::bit_cast<uint32_t>(v); }
+inline float FromBits(uint32_t b) { return std::bit_cast<float>(b); }
+
+Status CheckRadiance(const cv::Mat& radiance) {
+  if (radiance.empty()) {
+    return MakeError(ErrorCode::kInvalidInput, "tone mapping", "the radiance map is empty");
+  }
+  if (radiance.type() != CV_32FC3) {
+    return MakeError(ErrorCode::kInvalidInput, "tone mapping",
+                     "the radiance map must be CV_32FC3 (linear BGR float), got type {}",
+                     radiance.type());
+  }
+  return Ok();
+}
+
+Status CheckOptions(const ToneMapOptions& o) {
+  auto bad = [](const std::string& what) {
+    return MakeError(ErrorCode::kInvalidInput, "tone mapping options", "{}", what);
+  };
+  if (!(o.field_of_view_deg > 0 && o.field_of_view_deg < 360)) {
+    return bad(fmt::format("field_of_view_deg must be in (0, 360), got {}", o.field_of_view_deg));
+  }
+  if (!(o.display_min_cd_m2 > 0 && o.display_max_cd_m2 > o.display_min_cd_m2 &&
+        std::isfinite(o.display_max_cd_m2))) {
+    return bad(fmt::format("display range must satisfy 0 < min < max, got {} .. {} cd/m2",
+                           o.display_min_cd_m2, o.display_max_cd_m2));
+  }
+  if (!(o.ceiling_tolerance > 0 && o.ceiling_tolerance < 1)) {
+    return bad(fmt::format("ceiling_tolerance must be in (0, 1), got {}", o.ceiling_tolerance));
+  }
+  if (o.bins < 2 || o.bins > 100000) {
+    return bad(fmt::format("bins must be in [2, 100000], got {}", o.bins));
+  }
+  if (!o.srgb && !(o.gamma > 0 && std::isfinite(o.gamma))) {
+    return bad(fmt::format("gamma must be positive, got {}", o.gamma));
+  }
+  if (!(o.linear_scale >= 0 && std::isfinite(o.linear_scale))) {
+    return bad(fmt::format("linear_scale must be >= 0, got {}", o.linear_scale));
+  }
+  if (!(o.linear_percentile > 0 && o.linear_percentile <= 100)) {
+    return bad(fmt::format("linear_percentile must be in (0, 100], got {}", o.linear_percentile));
+  }
+  return Ok();
+}
+
+// Scales every pixel's BGR by factor(L) of its luminance: keeps colour ratios exactly.
+template <typename Factor>
+cv::Mat ScaleByLuminance(const cv::Mat& radiance, const Factor& factor) {
+  cv::Mat out(radiance.size(), CV_32FC3);
+  cv::parallel_for_(cv::Range(0, radiance.rows), [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      const float* in = radiance.ptr<float>(y);
+      float* o = out.ptr<float>(y);
+      for (int x = 0; x < radiance.cols; ++x, in += 3, o += 3) {
+        const float b = in[0], g = in[1], r = in[2];
+        const float l = kWeightB * b + kWeightG * g + kWeightR * r;
+        float m = 0;
+        if (l > 0 && l <= std::numeric_limits<float>::max()) {
+          m = factor(l);
+        } else if (l > 0) {  // +inf: show white
+          o[0] = o[1] = o[2] = 1;
+          continue;
+        }
+        o[0] = b * m;
+        o[1] = g * m;
+        o[2] = r * m;
+      }
+    }
+  });
+  return out;
+}
+
+// Ward's factor pixel_luminance(L) / L as a float-bit table over the histogram's domain,
+// interpolated linearly inside an entry; outside the domain the mapping is flat (0 below,
+// white above), so the factor is 0 or 1 / L there.
+class WardFactorLut {
+ public:
+  explicit WardFactorLut(const WardMapping& m) {
+    lo_ = static_cast<float>(std::exp(m.log_min));
+    hi_ = static_cast<float>(std::exp(m.log_max));
+    if (!(lo_ > 0)) lo_ = std::numeric_limits<float>::denorm_min();
+    if (!(hi_ <= std::numeric_limits<float>::max())) hi_ = std::numeric_limits<float>::max();
+    first_ = Bits(lo_) >> kLutShift;
+    const uint32_t last = (Bits(hi_) >> kLutShift) + 1;
+    table_.resize(last - first_ + 2);
+    for (size_t k = 0; k < table_.size(); ++k) {
+      const float l = FromBits(static_cast<uint32_t>((first_ + k) << kLutShift));
+      table_[k] = l > 0 ? static_cast<float>(m.PixelLuminance(l) / l) : 0.0f;
+    }
+  }
+  float operator()(float l) const {
+    if (l < lo_) return 0.0f;
+    if (l >= hi_) return 1.0f / l;
+    const uint32_t bits = Bits(l);
+    const size_t k = (bits >> kLutShift) - first_;
+    const float frac = static_cast<float>(bits & kLutFracMask) * kLutFracScale;
+    return table_[k] + (table_[k + 1] - table_[k]) * frac;
+  }
+
+ private:
+  float lo_ = 0, hi_ = 0;
+  uint32_t first_ = 0;
+  std::vector<float> table_;
+};
+
+cv::Mat WardPixels(const cv::Mat& radiance, const ToneMapOptions& o, ToneMapReport* report) {
+  cv::Mat foveal_rgb;
+  // Resizing is linear and so is luminance: averaging RGB then weighting equals averaging
+  // the luminance, at a third of the cost on the full image.
+  cv::resize(radiance, foveal_rgb, FovealSize(radiance.cols, radiance.rows, o.field_of_view_deg),
+             0, 0, cv::INTER_AREA);
+  cv::Mat foveal = Luminance(foveal_rgb);
+  std::vector<float> samples(foveal.begin<float>(), foveal.end<float>());
+  WardMapping mapping = ComputeWardMapping(samples, o, report);
+  if (report) {
+    report->foveal_width = foveal.cols;
+    report->foveal_height = foveal.rows;
+  }
+  if (mapping.linear) {
+    const float m = static_cast<float>(mapping.linear_scale / mapping.display_max_cd_m2);
+    return ScaleByLuminance(radiance, [m](float) { return m; });
+  }
+  WardFactorLut lut(mapping);
+  return ScaleByLuminance(radiance, lut);
+}
+
+cv::Mat LinearPixels(const cv::Mat& radiance, const ToneMapOptions& o, ToneMapReport* report) {
+  double scale = o.linear_scale;
+  // Luminance on a strided subset: a percentile needs no more than ~1M samples.
+  const size_t n = radiance.total();
+  const size_t stride = std::max<size_t>(1, n / (1u << 20));
+  std::vector<float> lum;
+  lum.reserve(n / stride + 1);
+  float lo = std::numeric_limits<float>::max(), hi = 0;
+  for (size_t i = 0; i < n; i += stride) {
+    const cv::Vec3f p = radiance.at<cv::Vec3f>(static_cast<int>(i / radiance.cols),
+                                               static_cast<int>(i % radiance.cols));
+    const float l = kWeightB * p[0] + kWeightG * p[1] + kWeightR * p[2];
+    if (l > 0 && std::isfinite(l)) {
+      lum.push_back(l);
+      lo = std::min(lo, l);
+      hi = std::max(hi, l);
+    }
+  }
+  if (scale <= 0) {
+    scale = 1;
+    if (!lum.empty()) {
+      const size_t k = std::min(lum.size() - 1, static_cast<size_t>(std::floor(
+                                                    o.linear_percentile / 100.0 * lum.size())));
+      std::nth_element(lum.begin(), lum.begin() + k, lum.end());
+      scale = 1.0 / lum[k];
+    }
+  }
+  if (report) {
+    report->linear_scale = scale;
+    report->scene_log_range = lum.empty() ? 0 : std::log(static_cast<double>(hi) / lo);
+  }
+  cv::Mat out;
+  radiance.convertTo(out, CV_32FC3, scale);
+  return out;
+}
+
+Result<cv::Mat> OpenCvPixels(const cv::Mat& radiance, ToneMapMethod method) {
+  try {
+    cv::Mat src = radiance.clone();
+    cv::patchNaNs(src, 0);
+    double max_value = 0;
+    cv::minMaxLoc(src.reshape(1), nullptr, &max_value);
+    if (!(max_value > 0)) return cv::Mat(radiance.size(), CV_32FC3, cv::Scalar::all(0));
+    // Drago and Mantiuk take logarithms: a floor far below anything visible keeps black
+    // pixels (and negative noise) finite.
+    cv::max(src, cv::Scalar::all(max_value * 1e-7), src);
+    cv::Ptr<cv::Tonemap> op;
+    switch (method) {
+      case ToneMapMethod::kReinhard: op = cv::createTonemapReinhard(1.0f); break;
+      case ToneMapMethod::kDrago: op = cv::createTonemapDrago(1.0f); break;
+      case ToneMapMethod::kMantiuk: op = cv::createTonemapMantiuk(1.0f); break;
+      default: RIG_CHECK(false, "not an OpenCV method");
+    }
+    cv::Mat dst;
+    op->process(src, dst);  // gamma 1: linear output; the display encoding is ours
+    cv::patchNaNs(dst, 0);
+    return dst;
+  } catch (const cv::Exception& e) {
+    return MakeError(ErrorCode::kInternal, "tone mapping",
+                     "OpenCV {} operator failed: {}", ToneMapMethodName(method), e.what());
+  }
+}
+
+// The linear value a display curve encodes to e (0..1): the inverse of the encoding.
+double DecodeValue(double e, const ToneMapOptions& o) {
+  if (o.srgb) return e <= 0.04045 ? e / 12.92 : std::pow((e + 0.055) / 1.055, 2.4);
+  return std::pow(e, o.gamma);
+}
+
+}  // namespace
+
+const char* ToneMapMethodName(ToneMapMethod method) {
+  switch (method) {
+    case ToneMapMethod::kWard: return "ward";
+    case ToneMapMethod::kLinear: return "linear";
+    case ToneMapMethod::kReinhard: return "reinhard";
+    case ToneMapMethod::kDrago: return "drago";
+    case ToneMapMethod::kMantiuk: return "mantiuk";
+  }
+  return "unknown";
+}
+
+Result<ToneMapMethod> ParseToneMapMethod(const std::string& name) {
+  for (ToneMapMethod m : {ToneMapMethod::kWard, ToneMapMethod::kLinear, ToneMapMethod::kReinhard,
+                          ToneMapMethod::kDrago, ToneMapMethod::kMantiuk}) {
+    if (name == ToneMapMethodName(m)) return m;
+  }
+  return MakeError(ErrorCode::kInvalidInput, "tone mapping",
+                   "unknown method '{}' (ward, linear, reinhard, drago or mantiuk)", name);
+}
+
+double FieldOfViewDeg(double focal_length_mm, double sensor_width_mm) {
+  return 2 * std::atan(sensor_width_mm / (2 * focal_length_mm)) * 180 / std::numbers::pi;
+}
+
+cv::Mat Luminance(const cv::Mat& bgr) {
+  RIG_CHECK(bgr.type() == CV_32FC3, "Luminance takes CV_32FC3");
+  cv::Mat lum;
+  cv::transform(bgr, lum, cv::Matx13f(kWeightB, kWeightG, kWeightR));
+  return lum;
+}
+
+cv::Mat FovealLuminance(const cv::Mat& luminance, double field_of_view_deg) {
+  RIG_CHECK(luminance.type() == CV_32FC1, "FovealLuminance takes CV_32FC1");
+  cv::Mat foveal;
+  cv::resize(luminance, foveal, FovealSize(luminance.cols, luminance.rows, field_of_view_deg), 0,
+             0, cv::INTER_AREA);
+  return foveal;
+}
+
+// ---- Ward's histogram ------------------------------------------------------------------
+
+double WardHistogram::Total() const {
+  double t = 0;
+  for (double c : counts) t += c;
+  return t;
+}
+
+WardHistogram BuildLogHistogram(const std::vector<float>& luminance_samples, int bins) {
+  RIG_CHECK(bins >= 1, "a histogram needs a bin");
+  WardHistogram h;
+  h.counts.assign(bins, 0.0);
+  std::vector<double> logs;
+  logs.reserve(luminance_samples.size());
+  for (float l : luminance_samples) {
+    if (l > 0 && std::isfinite(l)) logs.push_back(std::log(static_cast<double>(l)));
+  }
+  if (logs.empty()) return h;
+  auto [lo, hi] = std::minmax_element(logs.begin(), logs.end());
+  h.log_min = *lo;
+  h.log_max = *hi;
+  h.bin_width = (h.log_max - h.log_min) / bins;
+  for (double b : logs) {
+    int i = h.bin_width > 0 ? static_cast<int>((b - h.log_min) / h.bin_width) : 0;
+    h.counts[std::clamp(i, 0, bins - 1)] += 1;
+  }
+  h.original_total = static_cast<double>(logs.size());
+  return h;
+}
+
+double CeilingValue(const WardHistogram& h, double display_log_range) {
+  return h.Total() * h.bin_width / display_log_range;
+}
+
+CeilingOutcome ApplyLinearCeiling(WardHistogram* h, double display_log_range, double tolerance) {
+  RIG_CHECK(display_log_range > 0 && tolerance > 0, "ceiling needs a display range and tolerance");
+  CeilingOutcome out;
+  const double tol = tolerance * h->original_total;
+  // Each pass that goes on trims more than tol, so the total falls under tol after at most
+  // 1 / tolerance passes: the loop ends.
+  while (true) {
+    if (h->Total() <= tol) return out;  // emptied: no compression is needed
+    const double ceiling = CeilingValue(*h, display_log_range);
+    double trimmed = 0;
+    for (double& c : h->counts) {
+      if (c > ceiling) {
+        trimmed += c - ceiling;
+        c = ceiling;
+      }
+    }
+    ++out.iterations;
+    out.last_trimmed = trimmed;
+    if (trimmed <= tol) {
+      out.converged = true;
+      return out;
+    }
+  }
+}
+
+std::vector<double> CumulativeDistribution(const WardHistogram& h) {
+  std::vector<double> p(h.counts.size() + 1, 0.0);
+  const double total = h.Total();
+  double sum = 0;
+  for (size_t i = 0; i < h.counts.size(); ++i) {
+    p[i] = total > 0 ? sum / total : static_cast<double>(i) / h.counts.size();
+    sum += h.counts[i];
+  }
+  p.back() = 1.0;
+  return p;
+}
+
+double WardMapping::DisplayLogLuminance(double world_luminance) const {
+  const double ld_lo = std::log(display_min_cd_m2), ld_hi = std::log(display_max_cd_m2);
+  if (linear) return std::log(linear_scale * world_luminance);
+  if (!(world_luminance > 0)) return ld_lo;
+  const double b = std::log(world_luminance);
+  if (b <= log_min) return ld_lo;
+  if (b >= log_max) return ld_hi;
+  const int bins = static_cast<int>(cumulative.size()) - 1;
+  const double x = (b - log_min) / (log_max - log_min) * bins;
+  const int i = std::clamp(static_cast<int>(x), 0, bins - 1);
+  const double f = x - i;
+  const double p = cumulative[i] * (1 - f) + cumulative[i + 1] * f;
+  return ld_lo + (ld_hi - ld_lo) * p;
+}
+
+double WardMapping::DisplayLuminance(double world_luminance) const {
+  if (linear) return linear_scale * std::max(0.0, world_luminance);
+  return std::exp(DisplayLogLuminance(world_luminance));
+}
+
+double WardMapping::PixelLuminance(double world_luminance) const {
+  if (!(world_luminance > 0)) return 0;
+  if (linear) return linear_scale * world_luminance / display_max_cd_m2;
+  const double v = (DisplayLuminance(world_luminance) - display_min_cd_m2) /
+                   (display_max_cd_m2 - display_min_cd_m2);
+  return std::clamp(v, 0.0, 1.0);  // exp(ln x) may land an ulp outside
+}
+
+WardMapping ComputeWardMapping(const std::vector<float>& foveal_samples, const ToneMapOptions& o,
+                               ToneMapReport* report) {
+  WardMapping m;
+  m.display_min_cd_m2 = o.display_min_cd_m2;
+  m.display_max_cd_m2 = o.display_max_cd_m2;
+  WardHistogram h = BuildLogHistogram(foveal_samples, o.bins);
+  m.log_min = h.log_min;
+  m.log_max = h.log_max;
+  const double display_log_range = std::log(o.display_max_cd_m2 / o.display_min_cd_m2);
+  const double scene_log_range = h.log_max - h.log_min;
+  int iterations = 0;
+  bool linear = scene_log_range <= display_log_range;
+  if (!linear) {
+    CeilingOutcome c = ApplyLinearCeiling(&h, display_log_range, o.ceiling_tolerance);
+    iterations = c.iterations;
+    linear = !c.converged;
+  }
+  if (linear) {
+    // Radiance's pcond: the log-average of the foveal samples goes to the display's
+    // geometric middle, sqrt(L_dmin · L_dmax).
+    double sum = 0;
+    int n = 0;
+    for (float l : foveal_samples) {
+      if (l > 0 && std::isfinite(l)) {
+        sum += std::log(static_cast<double>(l));
+        ++n;
+      }
+    }
+    m.linear = true;
+    m.linear_scale = n > 0 ? std::sqrt(o.display_min_cd_m2 * o.display_max_cd_m2) /
+                                 std::exp(sum / n)
+                           : 1.0;
+  } else {
+    m.cumulative = CumulativeDistribution(h);
+  }
+  if (report) {
+    report->linear_fallback = m.linear;
+    report->trim_iterations = iterations;
+    report->scene_log_range = scene_log_range;
+    report->linear_scale = m.linear ? m.linear_scale : 0;
+  }
+  return m;
+}
+
+// ---- Whole images ----------------------------------------------------------------------
+
+Result<cv::Mat> ToneMapLinearPixels(const cv::Mat& radiance, const ToneMapOptions& o,
+                                    ToneMapReport* report) {
+  RIG_TRY(CheckRadiance(radiance));
+  RIG_TRY(CheckOptions(o));
+  try {
+    switch (o.method) {
+      case ToneMapMethod::kWard: return WardPixels(radiance, o, report);
+      case ToneMapMethod::kLinear: return LinearPixels(radiance, o, report);
+      case ToneMapMethod::kReinhard:
+      case ToneMapMethod::kDrago:
+      case ToneMapMethod::kMantiuk: return OpenCvPixels(radiance, o.method);
+    }
+  } catch (const cv::Exception& e) {
+    return MakeError(ErrorCode::kInternal, "tone mapping", "OpenCV failed: {}", e.what());
+  }
+  return MakeError(ErrorCode::kInvalidInput, "tone mapping", "unknown method");
+}
+
+cv::Mat EncodeForDisplay(const cv::Mat& linear_pixels, const ToneMapOptions& o,
+                         ToneMapReport* report) {
+  RIG_CHECK(linear_pixels.type() == CV_32FC3, "EncodeForDisplay takes CV_32FC3");
+  // Code k is chosen for linear values in [threshold[k], threshold[k+1]): the thresholds are
+  // the decoded midpoints between neighbouring codes, so the code is the rounded encoding.
+  std::array<double, 257> threshold;
+  threshold[0] = -1;
+  for (int k = 1; k <= 255; ++k) threshold[k] = DecodeValue((k - 0.5) / 255.0, o);
+  threshold[256] = 2;
+  // Float-bit table over [0, 1]: 1024 entries per octave, each holding the code of its
+  // lowest value. Neighbouring thresholds are further apart (relatively) than an entry is
+  // wide, so at most one falls inside an entry: one comparison makes the code exact.
+  std::array<float, 257> threshold_f;
+  for (int k = 0; k <= 256; ++k) threshold_f[k] = static_cast<float>(threshold[k]);
+  const uint32_t entries = (Bits(1.0f) >> kLutShift) + 1;
+  std::vector<uint8_t> table(entries);
+  int code = 0;
+  for (uint32_t i = 0; i < entries; ++i) {
+    const float v = FromBits(i << kLutShift);
+    while (code < 255 && v >= threshold_f[code + 1]) ++code;
+    table[i] = static_cast<uint8_t>(code);
+  }
+  cv::Mat out(linear_pixels.size(), CV_8UC3);
+  std::atomic<int64_t> low{0}, high{0};
+  cv::parallel_for_(cv::Range(0, linear_pixels.rows), [&](const cv::Range& rows) {
+    int64_t lo = 0, hi = 0;
+    for (int y = rows.start; y < rows.end; ++y) {
+      const float* in = linear_pixels.ptr<float>(y);
+      uint8_t* o8 = out.ptr<uint8_t>(y);
+      for (int x = 0; x < linear_pixels.cols; ++x, in += 3, o8 += 3) {
+        for (int c = 0; c < 3; ++c) {
+          const float v = in[c];
+          // NaN compares false both ways and lands on 0.
+          if (v >= 1.0f) {
+            o8[c] = 255;
+          } else if (v > 0) {
+            const int k = table[Bits(v) >> kLutShift];
+            o8[c] = static_cast<uint8_t>(k + (v >= threshold_f[k + 1]));
+          } else {
+            o8[c] = 0;
+          }
+        }
+        lo += (o8[0] | o8[1] | o8[2]) == 0;
+        hi += (o8[0] == 255) | (o8[1] == 255) | (o8[2] == 255);
+      }
+    }
+    low += lo;
+    high += hi;
+  });
+  if (report) {
+    const double n = static_cast<double>(linear_pixels.total());
+    report->clipped_low_fraction = n > 0 ? low.load() / n : 0;
+    report->clipped_high_fraction = n > 0 ? high.load() / n : 0;
+  }
+  return out;
+}
+
+Result<cv::Mat> ToneMap(const cv::Mat& radiance, const ToneMapOptions& o, ToneMapReport* report) {
+  RIG_ASSIGN_OR_RETURN(cv::Mat pixels, ToneMapLinearPixels(radiance, o, report));
+  return EncodeForDisplay(pixels, o, report);
+}
+
+}  // namespace rig
