@@ -231,6 +231,14 @@ double DecodeValue(double e, const ToneMapOptions& o) {
 
 }  // namespace
 
+ToneMapOptions ToneMapOptionsFor(const ProcessConfig& process) {
+  ToneMapOptions o;
+  o.field_of_view_deg = process.field_of_view_deg;
+  o.display_min_cd_m2 = process.display_min_cd_m2;
+  o.display_max_cd_m2 = process.display_max_cd_m2;
+  return o;
+}
+
 const char* ToneMapMethodName(ToneMapMethod method) {
   switch (method) {
     case ToneMapMethod::kWard: return "ward";

@@ -8,6 +8,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "config/config.h"
 #include "config/result.h"
 
 namespace rig {
@@ -31,6 +32,10 @@ struct ToneMapOptions {
   double linear_scale = 0;
   double linear_percentile = 99;
 };
+
+// The default options with a configuration's display: [process] field_of_view_deg,
+// display_min_cd_m2, display_max_cd_m2.
+ToneMapOptions ToneMapOptionsFor(const ProcessConfig& process);
 
 struct ToneMapReport {
   bool linear_fallback = false;  // Ward: a linear mapping was used (the range fits the display,

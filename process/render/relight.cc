@@ -1,0 +1,227 @@
+// Relighting: lamps summed in linear radiance, sweeps, the region check, pictures and video.
+#include "process/render/relight.h"
+
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <system_error>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "config/log.h"
+#include "process/io/exr_io.h"
+#include "process/model/light_direction.h"
+#include "process/render/exposure_render.h"
+
+namespace rig {
+namespace fs = std::filesystem;
+
+namespace {
+
+// ---- Everything that knows the model ------------------------------------------------------
+// (kept together, so that the model can later sit behind an interface)
+
+Vec3 DirectionOf(const Model& model, const RelightLamp& l) {
+  return LightDirection(l.h_deg, l.v_deg, model.info().light_frame);
+}
+
+// Empty when the lamp is inside the sampled region, else what is wrong with it.
+std::string OutsideRegion(const Model& model, const RelightLamp& l) {
+  const RegionCheck region = model.CheckRegion(DirectionOf(model, l));
+  if (region.inside) return {};
+  return fmt::format(
+      "lamp {},{} is {:.1f} deg from the nearest sampled lamp (sampling spacing {:.1f} deg): "
+      "outside the sampled region",
+      l.h_deg, l.v_deg, region.nearest_deg, model.info().sample_spacing_deg);
+}
+
+// The sum over lamps of ρ(direction) · capture lamp radiance · colour · intensity.
+cv::Mat SumOfLamps(const Model& model, const std::vector<RelightLamp>& lamps) {
+  cv::Mat sum;
+  for (const auto& l : lamps) {
+    model.AddLamp(DirectionOf(model, l),
+                  {l.rgb[0] * l.intensity, l.rgb[1] * l.intensity, l.rgb[2] * l.intensity}, &sum);
+  }
+  return sum;
+}
+
+// ---- The rest works on lamps and images only -----------------------------------------------
+
+Status CheckLamp(const std::string& outside, const RelightRequest& request) {
+  if (outside.empty()) return Ok();
+  if (!request.extrapolate) {
+    return MakeError(ErrorCode::kInvalidInput, "--light", "{}; --extrapolate renders it anyway",
+                     outside);
+  }
+  const std::string message = outside + ": extrapolated";
+  if (request.on_warning) {
+    request.on_warning(message);
+  } else {
+    Log("render")->warn("{}", message);
+  }
+  return Ok();
+}
+
+Status WritePicture(const std::string& path, const cv::Mat& bgr8) {
+  try {
+    if (!cv::imwrite(path, bgr8)) return MakeError(ErrorCode::kIo, path, "cannot write the picture");
+  } catch (const cv::Exception& e) {
+    return MakeError(ErrorCode::kIo, path, "cannot write the picture: {}", e.what());
+  }
+  return Ok();
+}
+
+const std::map<std::string, std::string> kRadianceHeader = {
+    {"rig.render", "relit radiance (linear)"}};
+
+}  // namespace
+
+std::vector<RelightLamp> SampleLampPath(const std::vector<RelightLamp>& path, int frames) {
+  std::vector<double> cum = {0};
+  for (size_t i = 1; i < path.size(); ++i)
+    cum.push_back(cum.back() + std::hypot(path[i].h_deg - path[i - 1].h_deg,
+                                          path[i].v_deg - path[i - 1].v_deg));
+  std::vector<RelightLamp> out;
+  for (int f = 0; f < frames; ++f) {
+    const double s = frames == 1 ? 0 : cum.back() * f / (frames - 1);
+    size_t k = 1;
+    while (k + 1 < path.size() && cum[k] < s) ++k;
+    const double seg = cum[k] - cum[k - 1];
+    const double t = seg > 0 ? (s - cum[k - 1]) / seg : 0;
+    RelightLamp l;
+    l.h_deg = path[k - 1].h_deg + t * (path[k].h_deg - path[k - 1].h_deg);
+    l.v_deg = path[k - 1].v_deg + t * (path[k].v_deg - path[k - 1].v_deg);
+    out.push_back(l);
+  }
+  return out;
+}
+
+Result<RenderOutput> Relight(const Model& model, const RelightRequest& request) {
+  // Refuse (or warn about) lamps outside the sampled region before rendering anything.
+  for (const auto& l : request.lamps) RIG_TRY(CheckLamp(OutsideRegion(model, l), request));
+  for (const auto& l : request.sweep) {
+    const std::string outside = OutsideRegion(model, l);
+    if (outside.empty()) continue;
+    if (Status st = CheckLamp(outside, request); !st.ok()) return st.error().Within("--sweep");
+    break;  // one warning for a sweep
+  }
+
+  RenderOutput output;
+  output.tonemap = request.tonemap;
+  output.sweep = request.sweep;
+  if (request.sweep.empty()) {
+    output.radiance.push_back(SumOfLamps(model, request.lamps));
+    return output;
+  }
+  for (const auto& l : request.sweep) {
+    std::vector<RelightLamp> set = request.lamps;
+    set.push_back(l);
+    output.radiance.push_back(SumOfLamps(model, set));
+  }
+  const ToneMapMethod method = request.tonemap.method;
+  if (request.display == RenderDisplay::kToneMap &&
+      (method == ToneMapMethod::kWard || method == ToneMapMethod::kLinear)) {
+    // One mapping for the whole sweep: the linear scale Ward/linear settle on for the
+    // brightest frame, applied to every frame.
+    size_t brightest = 0;
+    double best = -1;
+    for (size_t i = 0; i < output.radiance.size(); ++i) {
+      const double m = cv::mean(Luminance(output.radiance[i]))[0];
+      if (m > best) best = m, brightest = i;
+    }
+    ToneMapReport report;
+    ToneMapOptions linear = request.tonemap;
+    linear.method = ToneMapMethod::kLinear;
+    RIG_TRY(ToneMap(output.radiance[brightest], linear, &report));
+    output.tonemap = linear;
+    output.tonemap.linear_scale = report.linear_scale;
+  }
+  return output;
+}
+
+Result<cv::Mat> RenderPicture(const cv::Mat& radiance, const RelightRequest& request,
+                              const ToneMapOptions& tonemap) {
+  if (request.display == RenderDisplay::kExposure) {
+    return RenderExposure(radiance, request.exposure_s, request.log_exposure);
+  }
+  return ToneMap(radiance, tonemap);
+}
+
+RenderFileKind RenderFileKindOf(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (ext == ".exr") return RenderFileKind::kExr;
+  if (ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tif") return RenderFileKind::kPicture;
+  if (ext == ".avi") return RenderFileKind::kVideo;
+  return RenderFileKind::kUnknown;
+}
+
+std::string SweepFrameDir(const std::string& out) {
+  const fs::path p(out);
+  return (RenderFileKindOf(out) == RenderFileKind::kVideo ? fs::path(p).replace_extension("")
+                                                          : p.parent_path() / p.stem())
+      .string();
+}
+
+Result<RenderFiles> WriteRender(const RenderOutput& output, const RelightRequest& request,
+                                const std::string& out, double fps) {
+  const RenderFileKind kind = RenderFileKindOf(out);
+  const bool to_exr = kind == RenderFileKind::kExr;
+  RenderFiles files;
+  files.out = out;
+  if (output.sweep.empty()) {
+    if (output.radiance.size() != 1) {
+      return MakeError(ErrorCode::kInvalidInput, out, "a render without a sweep has one frame");
+    }
+    if (to_exr) {
+      RIG_TRY(WriteRgbExr(out, output.radiance[0], kRadianceHeader));
+    } else {
+      RIG_ASSIGN_OR_RETURN(cv::Mat pic, RenderPicture(output.radiance[0], request, output.tonemap));
+      RIG_TRY(WritePicture(out, pic));
+    }
+    files.frames = 1;
+    return files;
+  }
+
+  files.video = kind == RenderFileKind::kVideo;
+  files.frame_dir = SweepFrameDir(out);
+  std::error_code ec;
+  if (fs::exists(files.frame_dir)) {
+    return MakeError(ErrorCode::kInvalidInput, files.frame_dir,
+                     "exists; choose another --out (nothing is overwritten)");
+  }
+  fs::create_directories(files.frame_dir, ec);
+  if (ec) return MakeError(ErrorCode::kIo, files.frame_dir, "{}", ec.message());
+  cv::VideoWriter video;
+  for (size_t i = 0; i < output.radiance.size(); ++i) {
+    const fs::path frame =
+        fs::path(files.frame_dir) / fmt::format("frame_{:04d}{}", i, to_exr ? ".exr" : ".png");
+    Status st;
+    if (to_exr) {
+      st = WriteRgbExr(frame.string(), output.radiance[i], kRadianceHeader);
+    } else {
+      auto pic = RenderPicture(output.radiance[i], request, output.tonemap);
+      if (!pic.ok()) return pic.error().Within(frame.string());
+      st = WritePicture(frame.string(), *pic);
+      if (st.ok() && files.video) {
+        try {
+          if (!video.isOpened()) {
+            video.open(out, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), fps, pic->size());
+            if (!video.isOpened()) st = MakeError(ErrorCode::kIo, out, "cannot open a Motion JPEG video writer");
+          }
+          if (st.ok()) video.write(*pic);
+        } catch (const cv::Exception& e) {
+          st = MakeError(ErrorCode::kIo, out, "video: {}", e.what());
+        }
+      }
+    }
+    if (!st.ok()) return st.error();
+    ++files.frames;
+  }
+  video.release();
+  return files;
+}
+
+}  // namespace rig

@@ -1,0 +1,160 @@
+// process/render/relight without the command line: lamps add in linear radiance, colour and
+// intensity scale each channel, the region check refuses or warns, a sweep runs along its
+// path with one tone mapping, and WriteRender writes frames without overwriting.
+#include "process/render/relight.h"
+
+#include <filesystem>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "process/model/light_direction.h"
+#include "tests/support/run_rig.h"
+
+namespace rig {
+namespace {
+
+namespace fs = std::filesystem;
+
+// An SH order-2 model of a 24x16 image with seeded random coefficients (a positive constant
+// term, so renders are bright), sampled on the default grid: h 0-90, v 0-30, 10° steps.
+Model SyntheticModel() {
+  ModelInfo info;
+  info.lamp_radiance_rgb = {2.0, 1.5, 1.0};
+  for (double v = 0; v <= 30; v += 10)
+    for (double h = 0; h <= 90; h += 10) info.lamp_directions.push_back(LightDirection(h, v));
+  info.sample_spacing_deg = SampleSpacingDeg(info.lamp_directions);
+  Model model(Basis(BasisKind::kSh, 2), info, 24, 16);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-0.05f, 0.05f);
+  for (int k = 0; k < model.basis().size(); ++k) {
+    cv::Mat c(16, 24, CV_32FC3);
+    for (auto it = c.begin<cv::Vec3f>(); it != c.end<cv::Vec3f>(); ++it)
+      *it = cv::Vec3f(u(rng), u(rng), u(rng)) + (k == 0 ? cv::Vec3f(1, 1, 1) : cv::Vec3f());
+    model.coefficients().push_back(c);
+  }
+  return model;
+}
+
+RelightLamp Lamp(double h, double v, std::array<double, 3> rgb = {1, 1, 1}, double intensity = 1) {
+  RelightLamp l;
+  l.h_deg = h;
+  l.v_deg = v;
+  l.rgb = rgb;
+  l.intensity = intensity;
+  return l;
+}
+
+cv::Mat RenderOne(const Model& model, std::vector<RelightLamp> lamps) {
+  RelightRequest request;
+  request.lamps = std::move(lamps);
+  auto out = Relight(model, request);
+  EXPECT_TRUE(out.ok()) << out.error().ToString();
+  if (!out.ok()) return {};
+  EXPECT_EQ(out->radiance.size(), 1u);
+  return out->radiance[0];
+}
+
+TEST(Relight, TwoLampsRenderTheSumOfTheirSingleRenders) {
+  const Model model = SyntheticModel();
+  const cv::Mat a = RenderOne(model, {Lamp(20, 10)}), b = RenderOne(model, {Lamp(75, 25)});
+  const cv::Mat ab = RenderOne(model, {Lamp(20, 10), Lamp(75, 25)});
+  ASSERT_EQ(ab.type(), CV_32FC3);
+  const double scale = cv::norm(ab, cv::NORM_INF);
+  ASSERT_GT(scale, 0);
+  EXPECT_LT(cv::norm(a + b, ab, cv::NORM_INF), 1e-5 * scale);
+}
+
+TEST(Relight, LampColourIntensityAndCaptureLampScaleEachChannelExactly) {
+  const Model model = SyntheticModel();
+  const cv::Mat white = RenderOne(model, {Lamp(45, 20)});
+  const cv::Mat coloured = RenderOne(model, {Lamp(45, 20, {2, 1, 0.25}, 1.5)});
+  const cv::Mat rho = model.EvaluateRho(LightDirection(45, 20));
+  std::vector<cv::Mat> w, c, r;
+  cv::split(white, w);
+  cv::split(coloured, c);
+  cv::split(rho, r);
+  const double colour[3] = {0.25 * 1.5, 1 * 1.5, 2 * 1.5};  // B, G, R
+  const double lamp[3] = {1.0, 1.5, 2.0};                   // capture lamp, B, G, R
+  for (int ch = 0; ch < 3; ++ch) {
+    const double scale = cv::norm(w[ch], cv::NORM_INF);
+    ASSERT_GT(scale, 0);
+    EXPECT_LT(cv::norm(w[ch], r[ch] * lamp[ch], cv::NORM_INF), 1e-5 * scale) << ch;
+    EXPECT_LT(cv::norm(c[ch], w[ch] * colour[ch], cv::NORM_INF), 1e-5 * scale * colour[ch]) << ch;
+  }
+}
+
+TEST(Relight, LampsOutsideTheSampledRegionAreRefusedUnlessExtrapolated) {
+  const Model model = SyntheticModel();
+  RelightRequest request;
+  request.lamps = {Lamp(150, 60)};
+  auto refused = Relight(model, request);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.error().code, ErrorCode::kInvalidInput);
+  EXPECT_NE(refused.error().message.find("outside the sampled region"), std::string::npos);
+
+  std::vector<std::string> warnings;
+  request.extrapolate = true;
+  request.on_warning = [&](const std::string& m) { warnings.push_back(m); };
+  auto rendered = Relight(model, request);
+  ASSERT_TRUE(rendered.ok()) << rendered.error().ToString();
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("extrapolated"), std::string::npos);
+
+  // A sweep leaving the region: refused within --sweep.
+  RelightRequest sweep;
+  sweep.sweep = SampleLampPath({Lamp(0, 15), Lamp(170, 15)}, 8);
+  auto swept = Relight(model, sweep);
+  ASSERT_FALSE(swept.ok());
+  EXPECT_EQ(swept.error().context.rfind("--sweep", 0), 0u) << swept.error().ToString();
+}
+
+TEST(Relight, SweepRunsAlongItsPathWithOneToneMappingAndIsWrittenOnce) {
+  const std::vector<RelightLamp> path = SampleLampPath({Lamp(0, 15), Lamp(90, 15)}, 5);
+  ASSERT_EQ(path.size(), 5u);
+  EXPECT_DOUBLE_EQ(path.front().h_deg, 0);
+  EXPECT_DOUBLE_EQ(path[2].h_deg, 45);
+  EXPECT_NEAR(path.back().h_deg, 90, 1e-12);
+  for (const auto& l : path) EXPECT_DOUBLE_EQ(l.v_deg, 15);
+
+  const Model model = SyntheticModel();
+  RelightRequest request;
+  request.lamps = {Lamp(30, 0)};
+  request.sweep = path;
+  request.display = RenderDisplay::kToneMap;
+  auto out = Relight(model, request);
+  ASSERT_TRUE(out.ok()) << out.error().ToString();
+  ASSERT_EQ(out->radiance.size(), 5u);
+  // Each frame: the held lamp plus the moving one.
+  const cv::Mat third = RenderOne(model, {Lamp(30, 0), path[2]});
+  EXPECT_LT(cv::norm(out->radiance[2], third, cv::NORM_INF), 1e-5 * cv::norm(third, cv::NORM_INF));
+  // Ward on a sweep: one linear scale for every frame.
+  EXPECT_EQ(out->tonemap.method, ToneMapMethod::kLinear);
+  EXPECT_GT(out->tonemap.linear_scale, 0);
+
+  const std::string dir = testing::FreshTempDir("relight");
+  const std::string video = dir + "/sweep.avi";
+  auto files = WriteRender(*out, request, dir + "/sweep.png", 12);
+  ASSERT_TRUE(files.ok()) << files.error().ToString();
+  EXPECT_EQ(files->frames, 5u);
+  EXPECT_FALSE(files->video);
+  EXPECT_EQ(files->frame_dir, dir + "/sweep");
+  EXPECT_TRUE(fs::exists(dir + "/sweep/frame_0004.png"));
+  // The frame folder exists now: nothing is overwritten.
+  auto again = WriteRender(*out, request, video, 12);
+  ASSERT_FALSE(again.ok());
+  EXPECT_NE(again.error().message.find("exists"), std::string::npos);
+  fs::remove_all(dir);
+}
+
+TEST(Relight, OutputKindsFollowTheExtension) {
+  EXPECT_EQ(RenderFileKindOf("a/b.EXR"), RenderFileKind::kExr);
+  EXPECT_EQ(RenderFileKindOf("b.jpeg"), RenderFileKind::kPicture);
+  EXPECT_EQ(RenderFileKindOf("b.avi"), RenderFileKind::kVideo);
+  EXPECT_EQ(RenderFileKindOf("b.bmp"), RenderFileKind::kUnknown);
+  EXPECT_EQ(SweepFrameDir("out/s.avi"), "out/s");
+  EXPECT_EQ(SweepFrameDir("out/s.exr"), "out/s");
+}
+
+}  // namespace
+}  // namespace rig
