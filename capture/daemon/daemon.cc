@@ -1,9 +1,12 @@
-// The capture daemon.
+// The capture daemon: the acquisition protocol as named steps over one run's state.
 #include "capture/daemon/daemon.h"
+
+#include <unistd.h>
 
 #include <chrono>
 #include <functional>
 #include <map>
+#include <optional>
 #include <set>
 
 #include "capture/plan/bracket.h"
@@ -52,6 +55,9 @@ std::string ExtensionOf(const nlohmann::json& rec) {
   return e.empty() ? "" : e.substr(1);
 }
 
+// The extensions the processor merges (RAW files are stored, not merged).
+bool IsImage(const std::string& ext) { return ext == "jpg" || ext == "png" || ext == "tif"; }
+
 }  // namespace
 
 std::string CaptureSummary::ToString() const {
@@ -73,78 +79,26 @@ std::string CaptureSummary::ToString() const {
   return s;
 }
 
-CaptureDaemon::CaptureDaemon(Session& session, Camera& camera, Motor& motor, Lamp& lamp,
-                             CaptureOptions options)
-    : session_(session), camera_(camera), motor_(motor), lamp_(lamp), options_(options) {}
+// One run's state. The processor is declared before the progress bar, so that on an early
+// return the bar is closed before the processing tail is waited for.
+struct CaptureDaemon::RunState {
+  CaptureSummary& sum;
+  Clock::time_point t_start = Clock::now();
+  std::vector<Pose> poses;                    // the grid, in visiting order
+  std::string current_pose = "-";             // named by messages and fault records
+  // What the journal says is stored: pose -> bracket index -> files (JPEG, RAW ...).
+  std::map<std::string, std::map<int, std::vector<StoredFrame>>> stored;
+  std::optional<nlohmann::json> plan_record;  // the plan of an earlier run (resume)
+  bool was_done = false;                      // an earlier run journaled "capture_done"
+  bool lamp_open = false, motor_open = false;  // what Park() must switch off and stop
+  std::vector<double> exposures;              // the session's bracket, seconds
+  int n_exp = 0;                              // exposures.size()
+  int already = 0;                            // frames stored and verified before this run
+  std::optional<BracketProcessor> processor;
+  std::optional<Progress> progress;
 
-Status CaptureDaemon::Run(CaptureSummary* summary) {
-  auto log = Log("session");
-  const Config& cfg = session_.config();
-  const SessionLayout& layout = session_.layout();
-  Journal& journal = session_.journal();
-  CaptureSummary& sum = *summary;
-  auto t_start = Clock::now();
-  const std::vector<Pose> poses = PlanGrid(cfg.grid);
-  std::string current_pose = "-";
-
-  // ---- What is already stored (resume) --------------------------------------------------
-  std::map<std::string, std::map<int, std::vector<StoredFrame>>> stored;  // pose->index->files
-  std::optional<nlohmann::json> plan_record;
-  bool was_done = false;
-  for (const auto& r : session_.history().records) {
-    std::string ev = r.value("event", "");
-    if (ev == "plan") plan_record = r;
-    if (ev == "capture_done") was_done = true;
-    if (ev != "frame") continue;
-    auto& files = stored[r.at("pose").get<std::string>()][r.at("index").get<int>()];
-    // A later record for the same file supersedes an earlier one (a redone frame).
-    std::erase_if(files, [&](const StoredFrame& f) { return ExtensionOf(f.record) == ExtensionOf(r); });
-    files.push_back({r, false});
-  }
-  std::set<fs::path> known_files;
-  for (auto& [pose, by_index] : stored) {
-    for (auto& [index, files] : by_index) {
-      bool all_ok = true;
-      for (auto& f : files) {
-        fs::path p = layout.root / f.record.at("file").get<std::string>();
-        auto bytes = ReadFileBytes(p);
-        f.verified = bytes.ok() && bytes->size() == f.record.at("bytes").get<size_t>() &&
-                     Crc32(*bytes) == f.record.at("crc32").get<uint32_t>();
-        if (!f.verified) {
-          all_ok = false;
-          log->warn("pose={} frame {} ({}) is missing or damaged; it will be captured again", pose,
-                    index, p.string());
-          if (fs::exists(p)) RIG_TRY(MoveAside(p, "damaged"));
-          RIG_TRY(journal.Append({{"event", "frame_damaged"}, {"pose", pose}, {"index", index},
-                                  {"file", f.record.at("file")}}));
-        } else {
-          known_files.insert(p);
-        }
-      }
-      if (!all_ok) {
-        // The bracket index is redone whole (JPEG and RAW together): move the good half aside too.
-        for (auto& f : files) {
-          fs::path p = layout.root / f.record.at("file").get<std::string>();
-          if (f.verified && fs::exists(p)) RIG_TRY(MoveAside(p, "superseded"));
-          known_files.erase(p);
-          f.verified = false;
-        }
-        ++sum.frames_redone;
-      }
-    }
-  }
-  // Files that reached their final name but not the journal (a crash in between).
-  if (fs::exists(layout.frames())) {
-    for (const auto& e : fs::recursive_directory_iterator(layout.frames())) {
-      if (!e.is_regular_file()) continue;
-      if (e.path().filename().string()[0] == '.') continue;
-      if (e.path().parent_path().filename().string()[0] == '.') continue;
-      if (known_files.count(e.path())) continue;
-      RIG_TRY(MoveAside(e.path(), "unjournaled"));
-      ++sum.frames_redone;
-    }
-  }
-  auto index_done = [&](const std::string& pose, int index) {
+  // Every file of bracket `index` at `pose` is stored and verified.
+  bool IndexDone(const std::string& pose, int index) const {
     auto p = stored.find(pose);
     if (p == stored.end()) return false;
     auto i = p->second.find(index);
@@ -152,260 +106,458 @@ Status CaptureDaemon::Run(CaptureSummary* summary) {
     for (const auto& f : i->second)
       if (!f.verified) return false;
     return true;
-  };
-
-  RIG_TRY(journal.Append({{"event", plan_record ? "resume" : "start"}, {"pid", ::getpid()}}));
-
-  // ---- Parking and fault handling ---------------------------------------------------------
-  bool lamp_open = false, motor_open = false, camera_open = false;
-  auto park = [&] {
-    if (lamp_open) {
-      Status st = lamp_.Off();
-      if (!st.ok()) log->error("lamp: cannot switch off: {}", st.error().ToString());
-    }
-    if (motor_open) {
-      Status st = motor_.Stop();
-      if (!st.ok()) log->error("motor: cannot stop: {}", st.error().ToString());
-    }
-  };
-  auto fault = [&](const Error& e, const std::string& device) -> Status {
-    ++sum.faults;
-    park();
-    // "pose P: <device>: message" — the device's own context ("sim camera", "/dev/ttyACM0")
-    // only when its description does not already name it.
-    Error inner = e;
-    if (!inner.context.empty() && device.find(inner.context) != std::string::npos) inner.context.clear();
-    Error err = inner.Within(device).Within("pose " + current_pose);
-    log->error("fault: {}", err.ToString());
-    Status st = journal.Append({{"event", "fault"}, {"device", device}, {"pose", current_pose},
-                                {"error", err.ToString()}});
-    if (!st.ok()) log->error("{}", st.error().ToString());
-    return Error{ErrorCode::kFault, err.message, err.context};
-  };
-  auto interrupted = [&]() -> Status {
-    park();
-    int sig = StopSignal();
-    log->warn("stopped by signal {} at pose {}; 'rig resume {}' continues", sig, current_pose,
-              layout.root.string());
-    Status st = journal.Append({{"event", "interrupted"}, {"signal", sig}, {"pose", current_pose}});
-    if (!st.ok()) log->error("{}", st.error().ToString());
-    return MakeError(ErrorCode::kInterrupted, layout.root.string(), "interrupted by signal {}", sig);
-  };
-  // Runs `op`, retrying transient errors with doubling back-off; `recover` runs between tries.
-  auto with_retries = [&](int retries, double backoff_s, const std::function<Status()>& op,
-                          const std::function<void()>& recover) -> Status {
-    for (int attempt = 0;; ++attempt) {
-      Status st = op();
-      if (st.ok()) {
-        if (attempt > 0) log->warn("pose={} succeeded after {} retr{}", current_pose, attempt, attempt == 1 ? "y" : "ies");
-        return st;
-      }
-      if (!Retryable(st.error()) || attempt >= retries || StopRequested()) return st;
-      ++sum.retries;
-      log->warn("pose={} {} (retry {}/{} in {:.2f} s)", current_pose, st.error().ToString(), attempt + 1,
-                retries, backoff_s * (1 << attempt));
-      if (!SleepUnlessStopped(Seconds(backoff_s * (1 << attempt)))) return st;
-      if (recover) recover();
-    }
-  };
-
-  // ---- Devices ----------------------------------------------------------------------------
-  const auto& cc = cfg.camera;
-  const auto& mc = cfg.motor;
-  Status st = with_retries(cc.retries, cc.retry_backoff_s, [&] { return camera_.Open(); }, nullptr);
-  if (!st.ok()) return fault(st.error(), camera_.Describe());
-  camera_open = true;
-  st = with_retries(mc.retries, mc.retry_backoff_s, [&] { return motor_.Open(); }, nullptr);
-  if (!st.ok()) return fault(st.error(), motor_.Describe());
-  motor_open = true;
-  st = lamp_.Open();
-  if (!st.ok()) return fault(st.error(), lamp_.Describe());
-  lamp_open = true;
-  (void)camera_open;
-
-  CameraSettings wanted_settings{cc.iso, cc.aperture, cc.white_balance, cc.capture_target, cc.capture_raw};
-  auto applied = camera_.Configure(wanted_settings);
-  if (!applied.ok()) return fault(applied.error(), camera_.Describe());
-
-  // ---- The plan: poses × exposures snapped to the body's shutter speeds -------------------
-  auto speeds = camera_.ShutterSpeeds();
-  if (!speeds.ok()) return fault(speeds.error(), camera_.Describe());
-  auto snapped = SnapToShutterSpeeds(WantedExposures(cfg.bracket), *speeds);
-  if (!snapped.ok()) return snapped.error().Within(camera_.Describe());
-  std::vector<double> exposures;
-  for (Seconds s : *snapped) exposures.push_back(s.count());
-  std::vector<std::string> pose_names;
-  for (const auto& p : poses) pose_names.push_back(p.Name());
-  if (plan_record) {
-    if ((*plan_record)["poses"].get<std::vector<std::string>>() != pose_names)
-      return MakeError(ErrorCode::kInvalidInput, layout.journal().string(),
-                       "the journal's plan has other poses than session.toml's grid");
-    std::vector<double> before = (*plan_record)["exposures_s"].get<std::vector<double>>();
-    if (before.size() != exposures.size())
-      return MakeError(ErrorCode::kInvalidInput, camera_.Describe(),
-                       "the camera now offers a different bracket than the session started with");
-    exposures = before;  // the session's bracket stands
-  } else {
-    RIG_TRY(journal.Append({{"event", "plan"}, {"poses", pose_names}, {"exposures_s", exposures},
-                            {"camera", camera_.Describe()}, {"motor", motor_.Describe()},
-                            {"lamp", lamp_.Describe()}}));
   }
-  const int n_exp = static_cast<int>(exposures.size());
-  sum.poses = static_cast<int>(poses.size());
-  sum.frames = sum.poses * n_exp;
-  int already = 0;
-  for (const auto& p : poses)
-    for (int i = 0; i < n_exp; ++i) already += index_done(p.Name(), i) ? 1 : 0;
-  sum.frames_verified = already;
-  log->info("plan poses={} exposures={} frames={} already_stored={} camera=\"{}\" motor=\"{}\"",
-            poses.size(), n_exp, sum.frames, already, camera_.Describe(), motor_.Describe());
+};
 
-  std::optional<BracketProcessor> processor;
-  if (options_.process) processor.emplace(layout, cfg);
-  auto submit = [&](BracketJob job) {
-    if (!processor) return;
-    auto t0 = Clock::now();
-    processor->Submit(std::move(job));
-    sum.queue_wait_s += Since(t0);
-  };
-  // Complete poses from before: processed again only where their radiance map is missing.
-  for (const auto& p : poses) {
+CaptureDaemon::CaptureDaemon(Session& session, Camera& camera, Motor& motor, Lamp& lamp,
+                             CaptureOptions options)
+    : session_(session), camera_(camera), motor_(motor), lamp_(lamp), options_(options) {}
+
+// The acquisition protocol as its named steps: verify what is stored, plan, home, visit
+// every pose, finish.
+Status CaptureDaemon::Run(CaptureSummary* summary) {
+  RunState run{*summary};
+  run.poses = PlanGrid(session_.config().grid);
+  RIG_TRY(VerifyStored(run));
+  RIG_TRY(session_.journal().Append(
+      {{"event", run.plan_record ? "resume" : "start"}, {"pid", ::getpid()}}));
+  RIG_TRY(OpenDevices(run));
+  RIG_TRY(Plan(run));
+  StartProcessing(run);
+  RIG_TRY(Home(run));
+  run.progress.emplace(options_.progress ? run.sum.frames : 0, run.already);
+  for (const Pose& pose : run.poses) RIG_TRY(VisitPose(run, pose));
+  return Finish(run);
+}
+
+// ---- Verify what is stored (resume) ---------------------------------------------------------
+
+// Checks every stored frame against its journal record; damaged frames and files the
+// journal never heard of are moved aside, to be captured again.
+Status CaptureDaemon::VerifyStored(RunState& run) {
+  ReadJournal(run);
+  std::set<fs::path> known_files;
+  for (auto& [pose, by_index] : run.stored)
+    for (const auto& entry : by_index) RIG_TRY(VerifyIndex(run, pose, entry.first, known_files));
+  return MoveAsideUnjournaled(run, known_files);
+}
+
+// Reads the earlier runs' plan, frames and "capture_done" from the journal.
+void CaptureDaemon::ReadJournal(RunState& run) {
+  for (const auto& r : session_.history().records) {
+    std::string ev = r.value("event", "");
+    if (ev == "plan") run.plan_record = r;
+    if (ev == "capture_done") run.was_done = true;
+    if (ev != "frame") continue;
+    auto& files = run.stored[r.at("pose").get<std::string>()][r.at("index").get<int>()];
+    // A later record for the same file supersedes an earlier one (a redone frame).
+    std::erase_if(files,
+                  [&](const StoredFrame& f) { return ExtensionOf(f.record) == ExtensionOf(r); });
+    files.push_back({r, false});
+  }
+}
+
+// Verifies the files of one bracket index (size and CRC); one bad file redoes the index.
+Status CaptureDaemon::VerifyIndex(RunState& run, const std::string& pose, int index,
+                                  std::set<fs::path>& known_files) {
+  const SessionLayout& layout = session_.layout();
+  std::vector<StoredFrame>& files = run.stored.at(pose).at(index);
+  bool all_ok = true;
+  for (auto& f : files) {
+    fs::path p = layout.root / f.record.at("file").get<std::string>();
+    auto bytes = ReadFileBytes(p);
+    f.verified = bytes.ok() && bytes->size() == f.record.at("bytes").get<size_t>() &&
+                 Crc32(*bytes) == f.record.at("crc32").get<uint32_t>();
+    if (!f.verified) {
+      all_ok = false;
+      Log("session")->warn("pose={} frame {} ({}) is missing or damaged; it will be captured again",
+                           pose, index, p.string());
+      if (fs::exists(p)) RIG_TRY(MoveAside(p, "damaged"));
+      RIG_TRY(session_.journal().Append({{"event", "frame_damaged"}, {"pose", pose},
+                                         {"index", index}, {"file", f.record.at("file")}}));
+    } else {
+      known_files.insert(p);
+    }
+  }
+  if (all_ok) return Ok();
+  // The bracket index is redone whole (JPEG and RAW together): move the good half aside too.
+  for (auto& f : files) {
+    fs::path p = layout.root / f.record.at("file").get<std::string>();
+    if (f.verified && fs::exists(p)) RIG_TRY(MoveAside(p, "superseded"));
+    known_files.erase(p);
+    f.verified = false;
+  }
+  ++run.sum.frames_redone;
+  return Ok();
+}
+
+// Moves aside files that reached their final name but not the journal (a crash in between).
+Status CaptureDaemon::MoveAsideUnjournaled(RunState& run, const std::set<fs::path>& known_files) {
+  const SessionLayout& layout = session_.layout();
+  if (!fs::exists(layout.frames())) return Ok();
+  for (const auto& e : fs::recursive_directory_iterator(layout.frames())) {
+    if (!e.is_regular_file()) continue;
+    if (e.path().filename().string()[0] == '.') continue;
+    if (e.path().parent_path().filename().string()[0] == '.') continue;
+    if (known_files.count(e.path())) continue;
+    RIG_TRY(MoveAside(e.path(), "unjournaled"));
+    ++run.sum.frames_redone;
+  }
+  return Ok();
+}
+
+// ---- Devices and the plan -------------------------------------------------------------------
+
+// Opens camera, motor and lamp (camera and motor with retries) and configures the camera.
+Status CaptureDaemon::OpenDevices(RunState& run) {
+  const CameraConfig& cc = session_.config().camera;
+  const MotorConfig& mc = session_.config().motor;
+  Status st = WithRetries(
+      run, cc.retries, cc.retry_backoff_s, [&] { return camera_.Open(); }, nullptr);
+  if (!st.ok()) return Fault(run, st.error(), camera_.Describe());
+  st = WithRetries(run, mc.retries, mc.retry_backoff_s, [&] { return motor_.Open(); }, nullptr);
+  if (!st.ok()) return Fault(run, st.error(), motor_.Describe());
+  run.motor_open = true;
+  st = lamp_.Open();
+  if (!st.ok()) return Fault(run, st.error(), lamp_.Describe());
+  run.lamp_open = true;
+
+  CameraSettings wanted_settings{cc.iso, cc.aperture, cc.white_balance, cc.capture_target,
+                                 cc.capture_raw};
+  auto applied = camera_.Configure(wanted_settings);
+  if (!applied.ok()) return Fault(run, applied.error(), camera_.Describe());
+  return Ok();
+}
+
+// The plan: poses × exposures snapped to the body's shutter speeds; journaled on a first run,
+// checked against the journal's on resume (the session's bracket stands).
+Status CaptureDaemon::Plan(RunState& run) {
+  auto speeds = camera_.ShutterSpeeds();
+  if (!speeds.ok()) return Fault(run, speeds.error(), camera_.Describe());
+  auto snapped = SnapToShutterSpeeds(WantedExposures(session_.config().bracket), *speeds);
+  if (!snapped.ok()) return snapped.error().Within(camera_.Describe());
+  for (Seconds s : *snapped) run.exposures.push_back(s.count());
+  std::vector<std::string> pose_names;
+  for (const auto& p : run.poses) pose_names.push_back(p.Name());
+  if (run.plan_record) {
+    RIG_TRY(CheckPlan(run, pose_names));
+  } else {
+    RIG_TRY(session_.journal().Append({{"event", "plan"}, {"poses", pose_names},
+                                       {"exposures_s", run.exposures},
+                                       {"camera", camera_.Describe()},
+                                       {"motor", motor_.Describe()}, {"lamp", lamp_.Describe()}}));
+  }
+  run.n_exp = static_cast<int>(run.exposures.size());
+  run.sum.poses = static_cast<int>(run.poses.size());
+  run.sum.frames = run.sum.poses * run.n_exp;
+  for (const auto& p : run.poses)
+    for (int i = 0; i < run.n_exp; ++i) run.already += run.IndexDone(p.Name(), i) ? 1 : 0;
+  run.sum.frames_verified = run.already;
+  Log("session")->info(
+      "plan poses={} exposures={} frames={} already_stored={} camera=\"{}\" motor=\"{}\"",
+      run.poses.size(), run.n_exp, run.sum.frames, run.already, camera_.Describe(),
+      motor_.Describe());
+  return Ok();
+}
+
+// On resume: the grid must be the journal's, and the bracket as long; the journal's stands.
+Status CaptureDaemon::CheckPlan(RunState& run, const std::vector<std::string>& pose_names) {
+  nlohmann::json& plan = *run.plan_record;  // non-const []: a missing key reads as null
+  if (plan["poses"].get<std::vector<std::string>>() != pose_names)
+    return MakeError(ErrorCode::kInvalidInput, session_.layout().journal().string(),
+                     "the journal's plan has other poses than session.toml's grid");
+  std::vector<double> before = plan["exposures_s"].get<std::vector<double>>();
+  if (before.size() != run.exposures.size())
+    return MakeError(ErrorCode::kInvalidInput, camera_.Describe(),
+                     "the camera now offers a different bracket than the session started with");
+  run.exposures = before;  // the session's bracket stands
+  return Ok();
+}
+
+// Starts the processor (if asked) and hands it the complete poses from before whose
+// radiance map is missing.
+void CaptureDaemon::StartProcessing(RunState& run) {
+  const SessionLayout& layout = session_.layout();
+  if (options_.process) run.processor.emplace(layout, session_.config());
+  for (const auto& p : run.poses) {
     bool complete = true;
-    for (int i = 0; i < n_exp; ++i) complete = complete && index_done(p.Name(), i);
+    for (int i = 0; i < run.n_exp; ++i) complete = complete && run.IndexDone(p.Name(), i);
     if (!complete || fs::exists(layout.Hdr(p.Name()))) continue;
     BracketJob job{p, {}, {}, {}};
-    for (int i = 0; i < n_exp; ++i) {
-      for (const auto& f : stored[p.Name()][i]) {
-        std::string ext = ExtensionOf(f.record);
-        if (ext == "jpg" || ext == "png" || ext == "tif") {
-          job.files.push_back(layout.root / f.record.at("file").get<std::string>());
-          job.exposures_s.push_back(f.record.at("exposure_s").get<double>());
-        }
+    for (int i = 0; i < run.n_exp; ++i) {
+      for (const auto& f : run.stored[p.Name()][i]) {
+        if (!IsImage(ExtensionOf(f.record))) continue;
+        job.files.push_back(layout.root / f.record.at("file").get<std::string>());
+        job.exposures_s.push_back(f.record.at("exposure_s").get<double>());
       }
     }
-    submit(std::move(job));
+    Submit(run, std::move(job));
   }
+}
 
-  // ---- Homing -------------------------------------------------------------------------------
-  if (already < sum.frames && (mc.home_on_start || plan_record)) {
-    if (StopRequested()) return interrupted();
-    auto t0 = Clock::now();
-    current_pose = "home";
-    st = with_retries(mc.retries, mc.retry_backoff_s, [&] { return motor_.Home(); },
-                      [&] { (void)motor_.Reconnect(); });
-    sum.motion_s += Since(t0);
-    if (!st.ok()) return StopRequested() ? interrupted() : fault(st.error(), motor_.Describe());
-    RIG_TRY(journal.Append({{"event", "homed"}}));
+// ---- Home, visit the poses --------------------------------------------------------------
+
+// Homes the axes when anything is left to capture (on start if configured, always on resume).
+Status CaptureDaemon::Home(RunState& run) {
+  const MotorConfig& mc = session_.config().motor;
+  if (run.already >= run.sum.frames || !(mc.home_on_start || run.plan_record)) return Ok();
+  if (StopRequested()) return Interrupted(run);
+  auto t0 = Clock::now();
+  run.current_pose = "home";
+  Status st = WithRetries(
+      run, mc.retries, mc.retry_backoff_s, [&] { return motor_.Home(); },
+      [&] { (void)motor_.Reconnect(); });
+  run.sum.motion_s += Since(t0);
+  if (!st.ok())
+    return StopRequested() ? Interrupted(run) : Fault(run, st.error(), motor_.Describe());
+  return session_.journal().Append({{"event", "homed"}});
+}
+
+// Visits one pose: move, settle, lamp on, the bracket's missing frames, lamp off, "pose_done",
+// and the finished bracket to the processor. A pose stored whole is passed by.
+Status CaptureDaemon::VisitPose(RunState& run, const Pose& pose) {
+  const std::string name = pose.Name();
+  run.current_pose = name;
+  std::vector<int> missing;
+  for (int i = 0; i < run.n_exp; ++i)
+    if (!run.IndexDone(name, i)) missing.push_back(i);
+  if (missing.empty()) return Ok();
+  if (StopRequested()) return Interrupted(run);
+  RIG_TRY(MoveTo(run, pose));
+  RIG_TRY(Settle(run));
+  RIG_TRY(LampOn(run));
+  FreshImages fresh;
+  for (int index : missing) {
+    // A stop between frames: the frame in hand was finished and stored.
+    if (StopRequested()) return Interrupted(run);
+    RIG_TRY(CaptureFrame(run, pose, index, fresh));
   }
+  RIG_TRY(LampOff(run));
+  RIG_TRY(session_.journal().Append({{"event", "pose_done"}, {"pose", name}}));
+  if (options_.progress) run.progress->PoseDone(name);
+  HandOff(run, pose, fresh);
+  return Ok();
+}
 
-  // ---- The poses ----------------------------------------------------------------------------
-  Progress progress(options_.progress ? sum.frames : 0, already);
-  for (const auto& pose : poses) {
-    const std::string name = pose.Name();
-    current_pose = name;
-    std::vector<int> missing;
-    for (int i = 0; i < n_exp; ++i)
-      if (!index_done(name, i)) missing.push_back(i);
-    if (missing.empty()) continue;
-    if (StopRequested()) return interrupted();
+// Moves the lamp to `pose`, reconnecting the controller between tries.
+Status CaptureDaemon::MoveTo(RunState& run, const Pose& pose) {
+  const MotorConfig& mc = session_.config().motor;
+  auto t0 = Clock::now();
+  Status st = WithRetries(
+      run, mc.retries, mc.retry_backoff_s, [&] { return motor_.MoveTo(pose); },
+      [&] {
+        Status r = motor_.Reconnect();
+        if (!r.ok()) Log("session")->warn("{}", r.error().ToString());
+      });
+  run.sum.motion_s += Since(t0);
+  if (!st.ok())
+    return StopRequested() ? Interrupted(run) : Fault(run, st.error(), motor_.Describe());
+  return Ok();
+}
 
-    auto t0 = Clock::now();
-    st = with_retries(mc.retries, mc.retry_backoff_s, [&] { return motor_.MoveTo(pose); },
-                      [&] {
-                        Status r = motor_.Reconnect();
-                        if (!r.ok()) log->warn("{}", r.error().ToString());
-                      });
-    sum.motion_s += Since(t0);
-    if (!st.ok()) return StopRequested() ? interrupted() : fault(st.error(), motor_.Describe());
-    t0 = Clock::now();
-    if (!SleepUnlessStopped(Seconds(mc.settle_time_s * options_.settle_scale))) return interrupted();
-    sum.settle_s += Since(t0);
+// Waits for the arm to stop swinging (settle_time_s, scaled in a dry run).
+Status CaptureDaemon::Settle(RunState& run) {
+  const MotorConfig& mc = session_.config().motor;
+  auto t0 = Clock::now();
+  if (!SleepUnlessStopped(Seconds(mc.settle_time_s * options_.settle_scale)))
+    return Interrupted(run);
+  run.sum.settle_s += Since(t0);
+  return Ok();
+}
 
-    t0 = Clock::now();
-    st = with_retries(mc.retries, mc.retry_backoff_s, [&] { return lamp_.On(); }, nullptr);
-    sum.lamp_s += Since(t0);
-    if (!st.ok()) return StopRequested() ? interrupted() : fault(st.error(), lamp_.Describe());
+// Switches the lamp on (with the motor's retries).
+Status CaptureDaemon::LampOn(RunState& run) {
+  const MotorConfig& mc = session_.config().motor;
+  auto t0 = Clock::now();
+  Status st = WithRetries(
+      run, mc.retries, mc.retry_backoff_s, [&] { return lamp_.On(); }, nullptr);
+  run.sum.lamp_s += Since(t0);
+  if (!st.ok())
+    return StopRequested() ? Interrupted(run) : Fault(run, st.error(), lamp_.Describe());
+  return Ok();
+}
 
-    BracketJob job{pose, {}, {}, {}};
-    std::map<int, std::pair<fs::path, std::vector<uint8_t>>> fresh;  // index -> (file, bytes)
-    for (int index : missing) {
-      // A stop between frames: the frame in hand was finished and stored.
-      if (StopRequested()) return interrupted();
-      const double exposure = exposures[static_cast<size_t>(index)];
-      Result<CapturedFrame> frame = MakeError(ErrorCode::kInternal, "", "no capture");
-      t0 = Clock::now();
-      st = with_retries(
-          cc.retries, cc.retry_backoff_s,
-          [&]() -> Status {
-            frame = camera_.Capture(Seconds(exposure));
-            if (!frame.ok()) return frame.error();
-            return Ok();
-          },
-          [&] {
-            // A body that dropped off the bus is opened again before the next try.
-            camera_.Close();
-            Status r = camera_.Open();
-            if (!r.ok()) log->warn("{}", r.error().ToString());
-          });
-      sum.camera_s += Since(t0);
-      if (!st.ok()) return StopRequested() ? interrupted() : fault(st.error(), camera_.Describe());
-      sum.exposure_s += frame->exposure.count();
-      t0 = Clock::now();
-      for (auto& file : frame->files) {
-        nlohmann::json extra = {{"exposure_wanted_s", exposure}, {"ext", file.extension},
-                                {"h_deg", pose.h_deg}, {"v_deg", pose.v_deg}};
-        if (frame->exif_exposure) extra["exif_exposure_s"] = frame->exif_exposure->count();
-        // The journal records the exposure the body applied; the file name carries it too.
-        auto rec = session_.StoreFrame(name, index, exposure, file.extension, file.bytes, extra);
-        if (!rec.ok()) {
-          park();
-          return rec.error().Within("pose " + name);
-        }
-        if (file.extension == "jpg" || file.extension == "png" || file.extension == "tif")
-          fresh[index] = {layout.root / (*rec)["file"].get<std::string>(), std::move(file.bytes)};
-      }
-      sum.storage_s += Since(t0);
-      ++sum.frames_captured;
-      if (options_.progress) progress.Frame(name, index, n_exp);
+// Switches the lamp off (with the motor's retries); a failure is a fault even during a stop.
+Status CaptureDaemon::LampOff(RunState& run) {
+  const MotorConfig& mc = session_.config().motor;
+  auto t0 = Clock::now();
+  Status st = WithRetries(
+      run, mc.retries, mc.retry_backoff_s, [&] { return lamp_.Off(); }, nullptr);
+  run.sum.lamp_s += Since(t0);
+  if (!st.ok()) return Fault(run, st.error(), lamp_.Describe());
+  return Ok();
+}
+
+// ---- Capture a frame ------------------------------------------------------------------------
+
+// Captures frame `index` of the bracket at `pose` (retrying; a body that dropped off the bus
+// is opened again between tries) and stores its files.
+Status CaptureDaemon::CaptureFrame(RunState& run, const Pose& pose, int index, FreshImages& fresh) {
+  const CameraConfig& cc = session_.config().camera;
+  const double exposure = run.exposures[static_cast<size_t>(index)];
+  Result<CapturedFrame> frame = MakeError(ErrorCode::kInternal, "", "no capture");
+  auto t0 = Clock::now();
+  Status st = WithRetries(
+      run, cc.retries, cc.retry_backoff_s,
+      [&]() -> Status {
+        frame = camera_.Capture(Seconds(exposure));
+        if (!frame.ok()) return frame.error();
+        return Ok();
+      },
+      [&] {
+        camera_.Close();
+        Status r = camera_.Open();
+        if (!r.ok()) Log("session")->warn("{}", r.error().ToString());
+      });
+  run.sum.camera_s += Since(t0);
+  if (!st.ok())
+    return StopRequested() ? Interrupted(run) : Fault(run, st.error(), camera_.Describe());
+  run.sum.exposure_s += frame->exposure.count();
+  t0 = Clock::now();
+  RIG_TRY(StoreFiles(run, pose, index, exposure, *frame, fresh));
+  run.sum.storage_s += Since(t0);
+  ++run.sum.frames_captured;
+  if (options_.progress) run.progress->Frame(pose.Name(), index, run.n_exp);
+  return Ok();
+}
+
+// Stores and journals each file of a captured frame; keeps the images' bytes for the hand-off.
+// A storage failure parks the rig and ends the run (it is no device fault).
+Status CaptureDaemon::StoreFiles(RunState& run, const Pose& pose, int index, double exposure_s,
+                                 CapturedFrame& frame, FreshImages& fresh) {
+  const std::string name = pose.Name();
+  for (auto& file : frame.files) {
+    nlohmann::json extra = {{"exposure_wanted_s", exposure_s}, {"ext", file.extension},
+                            {"h_deg", pose.h_deg}, {"v_deg", pose.v_deg}};
+    if (frame.exif_exposure) extra["exif_exposure_s"] = frame.exif_exposure->count();
+    // The journal records the exposure the body applied; the file name carries it too.
+    auto rec = session_.StoreFrame(name, index, exposure_s, file.extension, file.bytes, extra);
+    if (!rec.ok()) {
+      Park(run);
+      return rec.error().Within("pose " + name);
     }
-
-    t0 = Clock::now();
-    st = with_retries(mc.retries, mc.retry_backoff_s, [&] { return lamp_.Off(); }, nullptr);
-    sum.lamp_s += Since(t0);
-    if (!st.ok()) return fault(st.error(), lamp_.Describe());
-    RIG_TRY(journal.Append({{"event", "pose_done"}, {"pose", name}}));
-    if (options_.progress) progress.PoseDone(name);
-
-    // Hand the finished bracket over (frames stored earlier come from their files).
-    for (int i = 0; i < n_exp; ++i) {
-      auto f = fresh.find(i);
-      if (f != fresh.end()) {
-        job.files.push_back(f->second.first);
-        job.bytes.push_back(std::move(f->second.second));
-      } else {
-        for (const auto& s : stored[name][i]) {
-          std::string ext = ExtensionOf(s.record);
-          if (ext == "jpg" || ext == "png" || ext == "tif") {
-            job.files.push_back(layout.root / s.record.at("file").get<std::string>());
-            job.bytes.emplace_back();
-          }
-        }
-      }
-      job.exposures_s.push_back(exposures[static_cast<size_t>(i)]);
-    }
-    submit(std::move(job));
+    if (IsImage(file.extension))
+      fresh[index] = {session_.layout().root / (*rec)["file"].get<std::string>(),
+                      std::move(file.bytes)};
   }
-  progress.Finish();
-  park();
+  return Ok();
+}
+
+// Hands the pose's finished bracket to the processor: fresh images with their bytes, frames
+// stored earlier from their files.
+void CaptureDaemon::HandOff(RunState& run, const Pose& pose, FreshImages& fresh) {
+  const std::string name = pose.Name();
+  BracketJob job{pose, {}, {}, {}};
+  for (int i = 0; i < run.n_exp; ++i) {
+    auto f = fresh.find(i);
+    if (f != fresh.end()) {
+      job.files.push_back(f->second.first);
+      job.bytes.push_back(std::move(f->second.second));
+    } else {
+      for (const auto& s : run.stored[name][i]) {
+        if (!IsImage(ExtensionOf(s.record))) continue;
+        job.files.push_back(session_.layout().root / s.record.at("file").get<std::string>());
+        job.bytes.emplace_back();
+      }
+    }
+    job.exposures_s.push_back(run.exposures[static_cast<size_t>(i)]);
+  }
+  Submit(run, std::move(job));
+}
+
+// Queues a bracket for processing (if any); the time blocked on a full queue is counted.
+void CaptureDaemon::Submit(RunState& run, BracketJob job) {
+  if (!run.processor) return;
+  auto t0 = Clock::now();
+  run.processor->Submit(std::move(job));
+  run.sum.queue_wait_s += Since(t0);
+}
+
+// ---- Finish -------------------------------------------------------------------------------
+
+// Parks and closes the devices, journals "capture_done" (once per session), waits for the
+// processing tail and closes the summary's clock.
+Status CaptureDaemon::Finish(RunState& run) {
+  run.progress->Finish();
+  Park(run);
   lamp_.Close();
   motor_.Close();
   camera_.Close();
-  if (!was_done) RIG_TRY(journal.Append({{"event", "capture_done"}}));
+  if (!run.was_done) RIG_TRY(session_.journal().Append({{"event", "capture_done"}}));
   auto t_tail = Clock::now();
-  if (processor) sum.processing = processor->Finish();
-  sum.processing_tail_s = Since(t_tail);
-  sum.total_s = Since(t_start);
+  if (run.processor) run.sum.processing = run.processor->Finish();
+  run.sum.processing_tail_s = Since(t_tail);
+  run.sum.total_s = Since(run.t_start);
   return Ok();
+}
+
+// ---- Park, fault, interrupted, retries ------------------------------------------------------
+
+// Leaves the rig safe: lamp off and motor stopped, where they were opened; errors only logged.
+void CaptureDaemon::Park(RunState& run) {
+  auto log = Log("session");
+  if (run.lamp_open) {
+    Status st = lamp_.Off();
+    if (!st.ok()) log->error("lamp: cannot switch off: {}", st.error().ToString());
+  }
+  if (run.motor_open) {
+    Status st = motor_.Stop();
+    if (!st.ok()) log->error("motor: cannot stop: {}", st.error().ToString());
+  }
+}
+
+// A device fault retries could not clear: park, journal a "fault" record, return kFault.
+Status CaptureDaemon::Fault(RunState& run, const Error& e, const std::string& device) {
+  auto log = Log("session");
+  ++run.sum.faults;
+  Park(run);
+  // "pose P: <device>: message" — the device's own context ("sim camera", "/dev/ttyACM0")
+  // only when its description does not already name it.
+  Error inner = e;
+  if (!inner.context.empty() && device.find(inner.context) != std::string::npos)
+    inner.context.clear();
+  Error err = inner.Within(device).Within("pose " + run.current_pose);
+  log->error("fault: {}", err.ToString());
+  Status st = session_.journal().Append({{"event", "fault"}, {"device", device},
+                                         {"pose", run.current_pose}, {"error", err.ToString()}});
+  if (!st.ok()) log->error("{}", st.error().ToString());
+  return Error{ErrorCode::kFault, err.message, err.context};
+}
+
+// A stop (SIGINT/SIGTERM): park, journal an "interrupted" record, return kInterrupted.
+Status CaptureDaemon::Interrupted(RunState& run) {
+  auto log = Log("session");
+  const std::string root = session_.layout().root.string();
+  Park(run);
+  int sig = StopSignal();
+  log->warn("stopped by signal {} at pose {}; 'rig resume {}' continues", sig, run.current_pose,
+            root);
+  Status st = session_.journal().Append(
+      {{"event", "interrupted"}, {"signal", sig}, {"pose", run.current_pose}});
+  if (!st.ok()) log->error("{}", st.error().ToString());
+  return MakeError(ErrorCode::kInterrupted, root, "interrupted by signal {}", sig);
+}
+
+// Runs `op`, retrying transient errors with doubling back-off; `recover` runs between tries.
+Status CaptureDaemon::WithRetries(RunState& run, int retries, double backoff_s,
+                                  const std::function<Status()>& op,
+                                  const std::function<void()>& recover) {
+  auto log = Log("session");
+  for (int attempt = 0;; ++attempt) {
+    Status st = op();
+    if (st.ok()) {
+      if (attempt > 0)
+        log->warn("pose={} succeeded after {} retr{}", run.current_pose, attempt,
+                  attempt == 1 ? "y" : "ies");
+      return st;
+    }
+    if (!Retryable(st.error()) || attempt >= retries || StopRequested()) return st;
+    ++run.sum.retries;
+    log->warn("pose={} {} (retry {}/{} in {:.2f} s)", run.current_pose, st.error().ToString(),
+              attempt + 1, retries, backoff_s * (1 << attempt));
+    if (!SleepUnlessStopped(Seconds(backoff_s * (1 << attempt)))) return st;
+    if (recover) recover();
+  }
 }
 
 }  // namespace rig

@@ -3,12 +3,18 @@
 // the processor while the rig moves on. Also continues an interrupted session (resume).
 #pragma once
 
+#include <functional>
+#include <map>
+#include <set>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "capture/devices/camera.h"
 #include "capture/devices/lamp.h"
 #include "capture/devices/motor.h"
 #include "capture/daemon/processor.h"
+#include "capture/plan/pose.h"
 #include "capture/session/session_store.h"
 
 namespace rig {
@@ -46,6 +52,44 @@ class CaptureDaemon {
   Status Run(CaptureSummary* summary);
 
  private:
+  // One run's state (defined in daemon.cc): what is stored, the plan, which devices are
+  // open, the pose in hand, the processor and the progress bar.
+  struct RunState;
+  // The images just captured at the pose in hand: bracket index -> (file, bytes as captured).
+  using FreshImages = std::map<int, std::pair<fs::path, std::vector<uint8_t>>>;
+
+  // The protocol's steps, in the order Run() takes them.
+  Status VerifyStored(RunState& run);
+  Status OpenDevices(RunState& run);
+  Status Plan(RunState& run);
+  void StartProcessing(RunState& run);
+  Status Home(RunState& run);
+  Status VisitPose(RunState& run, const Pose& pose);
+  Status Finish(RunState& run);
+
+  // Parts of the steps.
+  void ReadJournal(RunState& run);
+  Status VerifyIndex(RunState& run, const std::string& pose, int index,
+                     std::set<fs::path>& known_files);
+  Status MoveAsideUnjournaled(RunState& run, const std::set<fs::path>& known_files);
+  Status CheckPlan(RunState& run, const std::vector<std::string>& pose_names);
+  Status MoveTo(RunState& run, const Pose& pose);
+  Status Settle(RunState& run);
+  Status LampOn(RunState& run);
+  Status LampOff(RunState& run);
+  Status CaptureFrame(RunState& run, const Pose& pose, int index, FreshImages& fresh);
+  Status StoreFiles(RunState& run, const Pose& pose, int index, double exposure_s,
+                    CapturedFrame& frame, FreshImages& fresh);
+  void HandOff(RunState& run, const Pose& pose, FreshImages& fresh);
+  void Submit(RunState& run, BracketJob job);
+
+  // Leaving safely, and retrying.
+  void Park(RunState& run);
+  Status Fault(RunState& run, const Error& e, const std::string& device);
+  Status Interrupted(RunState& run);
+  Status WithRetries(RunState& run, int retries, double backoff_s,
+                     const std::function<Status()>& op, const std::function<void()>& recover);
+
   Session& session_;
   Camera& camera_;
   Motor& motor_;
