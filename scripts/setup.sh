@@ -9,7 +9,7 @@ packages=(
   libgphoto2-dev libgpiod-dev libserialport-dev
   # processing
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev libopencv-photo-dev
-  libopencv-videoio-dev libopenexr-dev libeigen3-dev libopenblas-dev
+  libopencv-videoio-dev libopenexr-dev libeigen3-dev libopenblas-dev libjpeg-dev
   # infrastructure
   libspdlog-dev libfmt-dev libtomlplusplus-dev libcli11-dev nlohmann-json3-dev
   zlib1g-dev

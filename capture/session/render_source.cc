@@ -11,7 +11,10 @@ Result<RenderSource> ResolveRenderSource(const std::string& source,
                                          const std::string& response_override) {
   RenderSource in;
   const fs::path p(source);
-  if (fs::is_directory(p)) {
+  if (fs::is_directory(p) && fs::exists(p / "info.json")) {
+    // A model folder (relight's web format): no session around it.
+    in.model_path = source;
+  } else if (fs::is_directory(p)) {
     // A session folder: its model, its response curve, its display settings.
     const SessionLayout layout{p};
     in.model_path = (layout.model() / "model.exr").string();

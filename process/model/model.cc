@@ -110,6 +110,7 @@ RegionCheck Model::CheckRegion(const Vec3& direction) const {
   r.nearest_deg = 180;
   for (const auto& d : info_.lamp_directions)
     r.nearest_deg = std::min(r.nearest_deg, AngleDeg(direction, d));
+  r.spacing_deg = info_.sample_spacing_deg;
   r.inside = !info_.lamp_directions.empty() &&
              r.nearest_deg <= info_.sample_spacing_deg + 0.5;
   return r;

@@ -36,6 +36,7 @@ struct ModelInfo {
 struct RegionCheck {
   double nearest_deg = 0;  // angle to the nearest sampled lamp
   bool inside = true;      // nearest_deg <= the sampling's own spacing (+0.5° slack)
+  double spacing_deg = 0;  // that spacing: the largest nearest-neighbour angle between lamps
 };
 
 class Model {

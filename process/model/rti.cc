@@ -27,19 +27,32 @@ Result<std::vector<LpEntry>> ReadLp(const std::string& path) {
   while (std::getline(f, line)) {
     ++lineno;
     if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (line.find_first_not_of(" \t") == std::string::npos) continue;
+    const auto first = line.find_first_not_of(" \t");
+    if (first == std::string::npos || line[first] == '#') continue;  // blank, or a comment
     std::istringstream is(line);
     const std::string where = fmt::format("{}:{}", path, lineno);
     if (count < 0) {
-      if (!(is >> count) || count <= 0) {
-        return MakeError(ErrorCode::kInvalidInput, where, "expected the image count, got '{}'",
+      std::string token, extra;
+      size_t used = 0;
+      try {
+        if (!(is >> token) || (is >> extra)) throw std::invalid_argument("count");
+        count = std::stol(token, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used == 0 || used != token.size() || count <= 0 || count > 100000) {
+        return MakeError(ErrorCode::kInvalidInput, where,
+                         "expected the image count (a whole number from 1 to 100000), got '{}'",
                          line);
       }
       continue;
     }
     LpEntry e;
     e.line = lineno;
-    if (!(is >> e.image >> e.direction[0] >> e.direction[1] >> e.direction[2])) {
+    std::string extra;
+    if (!(is >> e.image >> e.direction[0] >> e.direction[1] >> e.direction[2]) || (is >> extra) ||
+        !std::isfinite(e.direction[0]) || !std::isfinite(e.direction[1]) ||
+        !std::isfinite(e.direction[2])) {
       return MakeError(ErrorCode::kInvalidInput, where, "expected '<image> <x> <y> <z>', got '{}'",
                        line);
     }
@@ -58,6 +71,10 @@ Result<std::vector<LpEntry>> ReadLp(const std::string& path) {
   }
   if (count < 0) return MakeError(ErrorCode::kInvalidInput, path, "empty light file");
   if (static_cast<long>(out.size()) != count) {
+    if (static_cast<long>(out.size()) > count) {
+      return MakeError(ErrorCode::kInvalidInput, fmt::format("{}:{}", path, out[count].line),
+                       "the count says {} images, this is image {}", count, count + 1);
+    }
     return MakeError(ErrorCode::kInvalidInput, path, "the count says {} images, {} are listed",
                      count, out.size());
   }

@@ -1,6 +1,8 @@
 // Relighting: lamps summed in linear radiance, sweeps, the region check, pictures and video.
 #include "process/render/relight.h"
 
+#include "process/model/fit.h"
+
 #include <cctype>
 #include <cmath>
 #include <filesystem>
@@ -21,24 +23,24 @@ namespace fs = std::filesystem;
 namespace {
 
 // ---- Everything that knows the model ------------------------------------------------------
-// (kept together, so that the model can later sit behind an interface)
+// (the model is read through ReflectanceModel only: every family renders alike)
 
-Vec3 DirectionOf(const Model& model, const RelightLamp& l) {
-  return LightDirection(l.h_deg, l.v_deg, model.info().light_frame);
+Vec3 DirectionOf(const ReflectanceModel& model, const RelightLamp& l) {
+  return LightDirection(l.h_deg, l.v_deg, model.light_frame());
 }
 
 // Empty when the lamp is inside the sampled region, else what is wrong with it.
-std::string OutsideRegion(const Model& model, const RelightLamp& l) {
+std::string OutsideRegion(const ReflectanceModel& model, const RelightLamp& l) {
   const RegionCheck region = model.CheckRegion(DirectionOf(model, l));
   if (region.inside) return {};
   return fmt::format(
       "lamp {},{} is {:.1f} deg from the nearest sampled lamp (sampling spacing {:.1f} deg): "
       "outside the sampled region",
-      l.h_deg, l.v_deg, region.nearest_deg, model.info().sample_spacing_deg);
+      l.h_deg, l.v_deg, region.nearest_deg, region.spacing_deg);
 }
 
 // The sum over lamps of ρ(direction) · capture lamp radiance · colour · intensity.
-cv::Mat SumOfLamps(const Model& model, const std::vector<RelightLamp>& lamps) {
+cv::Mat SumOfLamps(const ReflectanceModel& model, const std::vector<RelightLamp>& lamps) {
   cv::Mat sum;
   for (const auto& l : lamps) {
     model.AddLamp(DirectionOf(model, l),
@@ -98,7 +100,7 @@ std::vector<RelightLamp> SampleLampPath(const std::vector<RelightLamp>& path, in
   return out;
 }
 
-Result<RenderOutput> Relight(const Model& model, const RelightRequest& request) {
+Result<RenderOutput> Relight(const ReflectanceModel& model, const RelightRequest& request) {
   // Refuse (or warn about) lamps outside the sampled region before rendering anything.
   for (const auto& l : request.lamps) RIG_TRY(CheckLamp(OutsideRegion(model, l), request));
   for (const auto& l : request.sweep) {
@@ -145,6 +147,16 @@ Result<cv::Mat> RenderPicture(const cv::Mat& radiance, const RelightRequest& req
                               const ToneMapOptions& tonemap) {
   if (request.display == RenderDisplay::kExposure) {
     return RenderExposure(radiance, request.exposure_s, request.log_exposure);
+  }
+  if (request.display == RenderDisplay::kEncoded) {
+    cv::Mat out(radiance.size(), CV_8UC3);
+    for (int y = 0; y < radiance.rows; ++y) {
+      const float* r = radiance.ptr<float>(y);
+      uint8_t* o = out.ptr<uint8_t>(y);
+      for (int x = 0; x < radiance.cols * 3; ++x)
+        o[x] = static_cast<uint8_t>(std::clamp(std::nearbyint(SrgbEncode(r[x]) * 255.0f), 0.0f, 255.0f));
+    }
+    return out;
   }
   return ToneMap(radiance, tonemap);
 }

@@ -11,7 +11,7 @@
 #include <opencv2/core.hpp>
 
 #include "config/result.h"
-#include "process/model/model.h"
+#include "process/model/reflectance_model.h"
 #include "process/render/tonemap.h"
 
 namespace rig {
@@ -33,6 +33,8 @@ enum class RenderDisplay {
   kRadiance,  // linear radiance (EXR)
   kToneMap,   // an 8-bit picture for a screen, through `tonemap`
   kExposure,  // the 8-bit picture the camera would record at `exposure_s`, through the response
+  kEncoded,   // the photographs' own encoding (sRGB, clipped as they clip): models fitted to
+              // 8-bit photographs render by default as the photographs were
 };
 
 struct RelightRequest {
@@ -64,7 +66,7 @@ struct RenderOutput {
 // Checks every lamp against the model's sampled region first, then renders every frame.
 // Errors: a lamp outside the region without `extrapolate` (kInvalidInput), a tone mapping
 // that fails on the sweep's brightest frame. Thread-compatible; the model is only read.
-Result<RenderOutput> Relight(const Model& model, const RelightRequest& request);
+Result<RenderOutput> Relight(const ReflectanceModel& model, const RelightRequest& request);
 
 // The 8-bit BGR picture of one frame (kToneMap or kExposure) with the output's mapping.
 Result<cv::Mat> RenderPicture(const cv::Mat& radiance, const RelightRequest& request,

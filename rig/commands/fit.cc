@@ -1,273 +1,226 @@
-// rig fit: fits a reflectance model to radiance maps with known lamp angles (--list) or to an
-// RTI capture (--lp), or reports leave-one-out error per basis and order (--loo-report).
+// rig fit: fits a reflectance model to a multi-light capture (--lp: by default the most
+// accurate model per byte, its size chosen from the data) or to radiance maps with known lamp
+// angles (--list), or reports leave-one-out error of every family (--loo-report).
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 
 #include "config/config.h"
 #include "config/log.h"
-#include "process/io/exr_io.h"
-#include "process/model/model.h"
-#include "process/model/model_stream.h"
-#include "process/model/rti.h"
+#include "process/evaluate/rti_loo.h"
+#include "process/model/map_fit.h"
+#include "process/model/rti_fit.h"
 #include "rig/commands/command.h"
 
 namespace rig {
 namespace {
 
-struct ListEntry {
-  std::string path;
-  double h_deg = 0, v_deg = 0;
+struct FitArgs {
+  std::string list, lp, out, report, loo_report, config_path, basis, order_text, method, space,
+      pixel_type, log_level, mask = "hinge";
+  int downsample = 1, max_order = -1, components = 0, grid = 0, quality = 0, loo_every = 1;
+  double max_bpp = 3.4;
+  size_t stream_mb = 1024;
+  bool no_neural = false;
 };
 
-Result<std::vector<ListEntry>> ReadFitList(const std::string& list) {
-  std::ifstream f(list);
-  if (!f) return MakeError(ErrorCode::kNotFound, list, "cannot open the list");
-  const std::filesystem::path folder = std::filesystem::path(list).parent_path();
-  std::vector<ListEntry> out;
-  std::string line;
-  int lineno = 0;
-  while (std::getline(f, line)) {
-    ++lineno;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    const auto first = line.find_first_not_of(" \t");
-    if (first == std::string::npos || line[first] == '#') continue;
-    std::istringstream is(line);
-    ListEntry e;
-    std::string extra;
-    if (!(is >> e.path >> e.h_deg >> e.v_deg) || (is >> extra)) {
-      return MakeError(ErrorCode::kInvalidInput, fmt::format("{}:{}", list, lineno),
-                       "expected '<radiance.exr> <h_deg> <v_deg>', got '{}'", line);
-    }
-    std::filesystem::path p(e.path);
-    if (p.is_relative()) p = folder / p;
-    e.path = p.string();
-    out.push_back(e);
-  }
-  if (out.empty()) return MakeError(ErrorCode::kInvalidInput, list, "the list names no maps");
-  return out;
+void AddOptions(CLI::App& app, FitArgs* a) {
+  auto* list = app.add_option("--list", a->list,
+                              "LIST: one '<radiance.exr> <h_deg> <v_deg>' per line (paths "
+                              "relative to the LIST's folder)");
+  auto* lp = app.add_option("--lp", a->lp,
+                            "RTI light file: a count, then '<image> <x> <y> <z>' per line");
+  list->excludes(lp);
+  app.add_option("--out", a->out,
+                 "the model: a folder for pca (relight's web format), an EXR for sh/hsh/ptm");
+  app.add_option("--config", a->config_path, "configuration (lamp radiance, light frame, [process])");
+  app.add_option("--basis", a->basis,
+                 "--lp: auto (default), pca, sh, hsh, ptm; --list: sh, hsh, ptm (default: config)");
+  app.add_option("--max-bytes-per-pixel", a->max_bpp,
+                 "auto/pca: the largest model considered, whole model on disk (default 3.4)")
+      ->check(CLI::Range(0.05, 1000.0));
+  app.add_option("--components", a->components, "pca: components (default: chosen)")
+      ->check(CLI::Range(1, 64));
+  app.add_option("--grid", a->grid, "pca: octahedral grid nodes per side (default: chosen)")
+      ->check(CLI::Range(2, 64));
+  app.add_option("--jpeg-quality", a->quality, "pca: JPEG quality of the planes (default: chosen)")
+      ->check(CLI::Range(1, 100));
+  app.add_option("--mask", a->mask,
+                 "pca: clipped/black samples: hinge (default: fitted around), drop, none");
+  app.add_option("--order", a->order_text, "sh/hsh/ptm: an order, or 'auto' (default: config)");
+  app.add_option("--max-order", a->max_order, "highest order considered by 'auto'");
+  app.add_option("--method", a->method, "quadrature, ls or rls (default: config, else rls)");
+  app.add_option("--space", a->space, "sh/hsh/ptm fit space: linear, srgb or log");
+  app.add_option("--pixel-type", a->pixel_type, "EXR models: half or float (default: config)");
+  app.add_option("--report", a->report, "write a Markdown report of the fit and the choice");
+  app.add_option("--loo-report", a->loo_report,
+                 "with --lp: leave-one-out PSNR of every family, refitting without each image "
+                 "(Markdown, and two charts beside it)");
+  app.add_option("--loo-every", a->loo_every,
+                 "with --loo-report: hold out every n-th image only (default 1: all)")
+      ->check(CLI::Range(1, 1000));
+  app.add_flag("--loo-no-neural", a->no_neural, "with --loo-report: leave the neural family out");
+  app.add_option("--downsample", a->downsample, "with --lp: shrink images by this factor first")
+      ->check(CLI::Range(1, 64));
+  app.add_option("--stream-above-mb", a->stream_mb,
+                 "with --list: stream row bands when the samples exceed this many MB");
+  AddLogLevelOption(app, &a->log_level);
 }
 
-// A radiance map and its validity (from the HDR merge's "flags" channel, when present).
-Status LoadRadiance(const std::string& path, cv::Mat* bgr, cv::Mat* valid) {
-  RIG_ASSIGN_OR_RETURN(ExrImage img, ReadExr(path));
-  cv::Mat planes[3];
-  for (int c = 0; c < 3; ++c) {
-    for (size_t i = 0; i < img.channel_names.size(); ++i) {
-      if (img.channel_names[i] == std::string(1, "BGR"[c])) planes[c] = img.channels[i];
-      if (img.channel_names[i] == "flags") {
-        *valid = img.channels[i] == 0;
-        *valid /= 255;
+// The harmonic options from config and the command line.
+Result<FitOptions> HarmonicOptions(const FitArgs& a, ProcessConfig pc) {
+  if (!a.method.empty()) pc.fit_method = a.method;
+  if (!a.space.empty()) pc.fit_space = a.space;
+  if (a.max_order >= 0) pc.max_order = a.max_order;
+  if (!a.order_text.empty()) {
+    if (a.order_text == "auto") {
+      pc.order = -1;
+    } else {
+      size_t used = 0;
+      try {
+        pc.order = std::stoi(a.order_text, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (used == 0 || used != a.order_text.size() || pc.order < 0) {
+        return MakeError(ErrorCode::kInvalidInput, "--order",
+                         "must be a non-negative number or 'auto', got '{}'", a.order_text);
       }
     }
-    if (planes[c].empty()) {
-      return MakeError(ErrorCode::kInvalidInput, path, "no '{}' channel (a radiance map is needed)",
-                       "BGR"[c]);
-    }
   }
-  cv::merge(planes, 3, *bgr);
-  return Ok();
+  return FitOptionsFromConfig(pc);
+}
+
+int RunLp(const FitArgs& a, const Config& config) {
+  auto capture = LoadRtiCapture(a.lp, a.downsample);
+  if (!capture.ok()) return ReportError("fit", capture.error());
+  if (!a.loo_report.empty()) {
+    RtiLooOptions lo;
+    lo.every = a.loo_every;
+    lo.neural = !a.no_neural;
+    lo.choice.max_bytes_per_pixel = a.max_bpp;
+    std::printf("rig fit: leave-one-out on %s (%d images %dx%d), refitting without each...\n",
+                a.lp.c_str(), capture->samples.lights(), capture->samples.width,
+                capture->samples.height);
+    auto rows = RtiLooTable(*capture, lo, [](const RtiLooRow& r) {
+      std::printf("  %-14s %-40s %6.2f / %6.2f dB  %6.2f B/px  %6.2f s\n", r.family.c_str(),
+                  r.setting.c_str(), r.psnr_mean_mse_db, r.psnr_median_db, r.bytes_per_pixel,
+                  r.fit_time_s);
+      std::fflush(stdout);
+    });
+    if (!rows.ok()) return ReportError("fit", rows.error());
+    // relight-cli's published figures belong to the shared icon (72 images, 402x395) only.
+    if (capture->samples.lights() == 72 && capture->samples.width == 402 &&
+        capture->samples.height == 395) {
+      for (auto& r : RelightPublishedIconRows()) rows->push_back(r);
+    }
+    const std::string md = RtiLooMarkdown(*capture, *rows);
+    std::ofstream f(a.loo_report);
+    f << md;
+    if (!f) return ReportError("fit", MakeError(ErrorCode::kIo, a.loo_report, "cannot write"));
+    const std::string prefix = (std::filesystem::path(a.loo_report).parent_path() /
+                                std::filesystem::path(a.loo_report).stem()).string();
+    Status charts = WriteRtiLooCharts(*rows, prefix);
+    if (!charts.ok()) return ReportError("fit", charts.error());
+    std::printf("rig fit: wrote %s and %s-psnr-{bytes,time}.png\n", a.loo_report.c_str(),
+                prefix.c_str());
+    if (a.out.empty()) return 0;
+  }
+  RtiFitRequest req;
+  req.family = a.basis.empty() ? "auto" : a.basis;
+  req.choice.max_bytes_per_pixel = a.max_bpp;
+  req.components = a.components;
+  req.grid_resolution = a.grid;
+  req.jpeg_quality = a.quality;
+  if (a.mask == "hinge") req.choice.base.mask = PcaMaskMode::kHinge;
+  else if (a.mask == "drop") req.choice.base.mask = PcaMaskMode::kDrop;
+  else if (a.mask == "none") req.choice.base.mask = PcaMaskMode::kNone;
+  else return ReportError("fit", MakeError(ErrorCode::kInvalidInput, "--mask", "'{}': hinge, drop or none", a.mask));
+  ProcessConfig pc = config.process;
+  if (a.space.empty()) pc.fit_space = "srgb";  // 8-bit photographs: fitted as they are encoded
+  auto harmonic = HarmonicOptions(a, pc);
+  if (!harmonic.ok()) return ReportError("fit", harmonic.error());
+  req.harmonic = *harmonic;
+  const bool folder_family = req.family == "auto" || req.family == "pca";
+  if (folder_family && std::filesystem::path(a.out).extension() == ".exr") {
+    return ReportError("fit", MakeError(ErrorCode::kInvalidInput, a.out,
+                                        "the {} model is a folder (relight's web format: "
+                                        "info.json and JPEG planes); give a folder, or --basis "
+                                        "sh|hsh|ptm for an EXR",
+                                        req.family));
+  }
+  auto fit = FitRti(*capture, req);
+  if (!fit.ok()) return ReportError("fit", fit.error());
+  Status saved = fit->model->Save(a.out);
+  if (!saved.ok()) return ReportError("fit", saved.error());
+  if (!a.report.empty()) {
+    std::ofstream f(a.report);
+    f << fit->report;
+    if (!f) return ReportError("fit", MakeError(ErrorCode::kIo, a.report, "cannot write"));
+  }
+  const double bpp = static_cast<double>(ModelBytesOnDisk(a.out)) /
+                     static_cast<double>(capture->samples.pixels());
+  std::printf("rig fit: wrote %s (%.2f B/px): %s; masked %.1f%% of samples (%.1f%% of pixels); "
+              "load %.2f s, fit %.2f s\n",
+              a.out.c_str(), bpp, fit->summary.c_str(), 100 * capture->masked_fraction,
+              100 * capture->pixels_with_masked, capture->load_time_s, fit->fit_time_s);
+  return 0;
 }
 
 }  // namespace
 
 int RunFit(int argc, char** argv) {
-  CLI::App app{"Fit a per-pixel reflectance model (basis coefficients) to radiance maps with known "
-               "lamp directions, or report leave-one-out error per basis and order.",
+  CLI::App app{"Fit a reflectance model to a multi-light capture (--lp) or to radiance maps "
+               "with known lamp angles (--list), or report leave-one-out error of every family.",
                "rig fit"};
-  std::string list, lp, out, report, loo_report, config_path, basis_name, order_text = "",
-                                                                 method_name, space_name,
-                                                                 pixel_type, log_level;
-  bool linear = false;
-  int downsample = 1, max_order = -1;
-  size_t stream_mb = 1024;
-  auto* list_opt = app.add_option("--list", list,
-                                  "LIST: one '<radiance.exr> <h_deg> <v_deg>' per line (paths "
-                                  "relative to the LIST's folder)");
-  auto* lp_opt = app.add_option("--lp", lp,
-                                "RTI light file: a count, then '<image> <x> <y> <z>' per line");
-  list_opt->excludes(lp_opt);
-  app.add_option("--out", out, "model EXR to write");
-  app.add_option("--config", config_path, "configuration (lamp radiance, light frame, [process])");
-  app.add_option("--basis", basis_name, "sh, hsh or ptm (default: config, else sh)");
-  app.add_option("--order", order_text, "an order, or 'auto' (default: config)");
-  app.add_option("--max-order", max_order, "highest order considered by 'auto'");
-  app.add_option("--method", method_name, "quadrature, ls or rls (default: config, else rls)");
-  app.add_option("--space", space_name, "fit space: linear, srgb or log (default: config)");
-  app.add_option("--pixel-type", pixel_type, "model pixels: half or float (default: config)");
-  app.add_option("--report", report, "write a Markdown report of the fit (per order)");
-  app.add_option("--loo-report", loo_report,
-                 "with --lp: write leave-one-out PSNR per basis, order, method and space");
-  app.add_flag("--linear", linear, "with --lp: the images are linear, not sRGB");
-  app.add_option("--downsample", downsample, "with --lp: shrink images by this factor first")
-      ->check(CLI::Range(1, 64));
-  app.add_option("--stream-above-mb", stream_mb,
-                 "with --list: stream row bands when the samples exceed this many MB");
-  AddLogLevelOption(app, &log_level);
+  FitArgs a;
+  AddOptions(app, &a);
   if (auto rc = ParseCommandLine(app, argc, argv)) return *rc;
-  if (auto rc = ApplyLogLevel(log_level)) return *rc;
-  if (list.empty() && lp.empty()) {
+  if (auto rc = ApplyLogLevel(a.log_level)) return *rc;
+  if (a.list.empty() && a.lp.empty()) {
     std::fprintf(stderr, "rig fit: one of --list or --lp is required\n");
     return 2;
   }
-  if (out.empty() && loo_report.empty()) {
+  if (a.out.empty() && a.loo_report.empty()) {
     std::fprintf(stderr, "rig fit: --out (or, with --lp, --loo-report) is required\n");
     return 2;
   }
-  if (!loo_report.empty() && lp.empty()) {
+  if (!a.loo_report.empty() && a.lp.empty()) {
     std::fprintf(stderr, "rig fit: --loo-report needs --lp\n");
     return 2;
   }
-
+  if (!a.pixel_type.empty() && a.pixel_type != "half" && a.pixel_type != "float") {
+    std::fprintf(stderr, "rig fit: --pixel-type must be half or float\n");
+    return 2;
+  }
   Config config;
-  if (!config_path.empty()) {
-    auto c = LoadConfigOrError(config_path);
+  if (!a.config_path.empty()) {
+    auto c = LoadConfigOrError(a.config_path);
     if (!c.ok()) return ReportError("fit", c.error());
     config = *c;
   }
-  ProcessConfig& pc = config.process;
-  if (!basis_name.empty()) pc.basis = basis_name;
-  if (!method_name.empty()) pc.fit_method = method_name;
-  if (!space_name.empty()) pc.fit_space = space_name;
-  if (!pixel_type.empty()) {
-    if (pixel_type != "half" && pixel_type != "float") {
-      std::fprintf(stderr, "rig fit: --pixel-type must be half or float\n");
-      return 2;
-    }
-    pc.model_pixel_type = pixel_type;
-  }
-  if (max_order >= 0) pc.max_order = max_order;
-  if (!order_text.empty()) {
-    if (order_text == "auto") {
-      pc.order = -1;
-    } else {
-      try {
-        size_t used = 0;
-        pc.order = std::stoi(order_text, &used);
-        if (used != order_text.size() || pc.order < 0) throw std::invalid_argument("order");
-      } catch (const std::exception&) {
-        std::fprintf(stderr, "rig fit: --order must be a non-negative number or 'auto'\n");
-        return 2;
-      }
-    }
-  }
-  auto options = FitOptionsFromConfig(pc);
-  if (!options.ok()) return ReportError("fit", options.error());
-  const ExrPixelType type = pc.model_pixel_type == "half" ? ExrPixelType::kHalf
-                                                          : ExrPixelType::kFloat;
+  if (!a.lp.empty()) return RunLp(a, config);
 
-  FitInput input;
-  input.light_frame = config.light_frame;
-  input.lamp_radiance_rgb = config.lamp.radiance_rgb;
-  if (!lp.empty()) {
-    auto entries = ReadLp(lp);
-    if (!entries.ok()) return ReportError("fit", entries.error());
-    auto images = LoadRtiImages(*entries, linear, downsample);
-    if (!images.ok()) return ReportError("fit", images.error());
-    for (const auto& e : *entries) input.directions.push_back(e.direction);
-    if (!loo_report.empty()) {
-      std::vector<LooSpec> specs;
-      for (FitSpace space : {FitSpace::kSrgb, FitSpace::kLinear, FitSpace::kLog}) {
-        for (BasisKind b : {BasisKind::kPtm, BasisKind::kHsh, BasisKind::kSh}) {
-          const int lo = b == BasisKind::kPtm ? 1 : 0;
-          const int hi = b == BasisKind::kPtm ? std::min(pc.max_order, 4) : pc.max_order;
-          for (int order = lo; order <= hi; ++order) {
-            for (FitMethod m : {FitMethod::kLs, FitMethod::kRls}) {
-              specs.push_back({b, order, m, space});
-            }
-          }
-          if (space == FitSpace::kSrgb && b != BasisKind::kPtm) {
-            specs.push_back({b, 2, FitMethod::kQuadrature, space});
-          }
-        }
-      }
-      auto rows = RtiLeaveOneOut(*images, input.directions, specs, linear, options->max_condition);
-      std::string md = fmt::format(
-          "# Leave-one-out on {}\n\n{} images {}x{} (downsample {}), {}; PSNR in 8-bit sRGB\n\n",
-          lp, images->encoded.size(), images->encoded[0].cols, images->encoded[0].rows,
-          downsample, linear ? "linear 8-bit" : "sRGB 8-bit");
-      md += LooTableMarkdown(rows);
-      std::ofstream f(loo_report);
-      f << md;
-      if (!f) return ReportError("fit", MakeError(ErrorCode::kIo, loo_report, "cannot write"));
-      std::printf("%s", md.c_str());
-      if (out.empty()) return 0;
-    }
-    input.radiance = std::move(images->radiance);
-    input.weights = UniformHemisphereWeights(input.directions.size());
-  } else {
-    auto entries = ReadFitList(list);
-    if (!entries.ok()) return ReportError("fit", entries.error());
-    std::vector<double> h_phys, v_phys;
-    for (const auto& e : *entries) {
-      input.directions.push_back(LightDirection(e.h_deg, e.v_deg, config.light_frame));
-      double h = 0, v = 0;
-      DirectionToAngles(input.directions.back(), &h, &v);
-      h_phys.push_back(h);
-      v_phys.push_back(v);
-    }
-    input.weights = GridQuadratureWeights(h_phys, v_phys);
-    std::vector<std::string> paths;
-    for (const auto& e : *entries) paths.push_back(e.path);
-    auto est = EstimateSampleBytes(paths);
-    if (!est.ok()) return ReportError("fit", est.error());
-    if (*est > stream_mb * 1024 * 1024 && pc.reference_patch_px[2] == 0) {
-      StreamFitInput sin;
-      sin.paths = paths;
-      sin.directions = input.directions;
-      sin.weights = input.weights;
-      sin.lamp_radiance_rgb = input.lamp_radiance_rgb;
-      sin.light_frame = input.light_frame;
-      auto r = FitModelStreaming(sin, *options, out, type);
-      if (!r.ok()) return ReportError("fit", r.error());
-      std::printf("rig fit: wrote %s (streamed): basis %s order %d (%d terms), LOO RMSE %.5g\n",
-                  out.c_str(), BasisKindName(options->basis), r->selection.order,
-                  r->selection.projector.basis.size(), r->loo_rmse);
-      return 0;
-    }
-    for (const auto& e : *entries) {
-      cv::Mat bgr, valid;
-      Status s = LoadRadiance(e.path, &bgr, &valid);
-      if (!s.ok()) return ReportError("fit", s.error());
-      input.radiance.push_back(bgr);
-      input.valid.push_back(valid);
-    }
-    bool any_mask = false;
-    for (const auto& v : input.valid) any_mask |= !v.empty();
-    if (!any_mask) {
-      input.valid.clear();
-    } else {
-      for (size_t i = 0; i < input.valid.size(); ++i) {
-        if (input.valid[i].empty())
-          input.valid[i] = cv::Mat(input.radiance[i].size(), CV_8U, cv::Scalar(1));
-      }
-    }
+  MapFitRequest req;
+  req.list = a.list;
+  req.out = a.out;
+  if (!a.basis.empty()) config.process.basis = a.basis;
+  if (!a.pixel_type.empty()) config.process.model_pixel_type = a.pixel_type;
+  req.config = config;
+  auto options = HarmonicOptions(a, config.process);
+  if (!options.ok()) return ReportError("fit", options.error());
+  req.options = *options;
+  req.pixel_type = config.process.model_pixel_type == "half" ? ExrPixelType::kHalf
+                                                             : ExrPixelType::kFloat;
+  req.stream_above_bytes = a.stream_mb * 1024 * 1024;
+  auto fit = FitMaps(req);
+  if (!fit.ok()) return ReportError("fit", fit.error());
+  if (!a.report.empty() && !fit->report.empty()) {
+    std::ofstream f(a.report);
+    f << fit->report;
+    if (!f) return ReportError("fit", MakeError(ErrorCode::kIo, a.report, "cannot write"));
   }
-  if (pc.reference_patch_px[2] > 0) {
-    auto e = CalibrateLampRadiance(input.radiance, pc.reference_patch_px,
-                                   pc.reference_reflectance);
-    if (!e.ok()) return ReportError("fit", e.error());
-    input.lamp_radiance_rgb = *e;
-  }
-  auto fitted = FitModel(input, *options);
-  if (!fitted.ok()) return ReportError("fit", fitted.error());
-  if (!report.empty()) {
-    std::ofstream f(report);
-    f << FitReportMarkdown(*fitted, *options);
-    if (!f) return ReportError("fit", MakeError(ErrorCode::kIo, report, "cannot write"));
-  }
-  if (!out.empty()) {
-    Status s = SaveModel(out, fitted->model, type);
-    if (!s.ok()) return ReportError("fit", s.error());
-  }
-  const auto& m = fitted->model;
-  std::printf("rig fit: wrote %s: basis %s order %d (%d terms/channel), method %s, space %s, "
-              "LOO RMSE %.5g, condition %.3g, flagged pixels %zu, %.2f s\n",
-              out.c_str(), m.basis().name().c_str(), m.basis().order(), m.basis().size(),
-              FitMethodName(options->method), FitSpaceName(options->transform.space),
-              m.info().loo_rmse, m.info().condition, m.info().flagged_pixels,
-              fitted->fit_time_s);
+  std::printf("rig fit: %s\n", fit->summary.c_str());
   return 0;
 }
 

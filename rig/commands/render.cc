@@ -184,11 +184,16 @@ int RunRender(int argc, char** argv) {
   if (!request.ok()) return ReportError("render", request.error());
   auto source = ResolveRenderSource(a.source, a.response_option);
   if (!source.ok()) return ReportError("render", source.error());
-  auto model = LoadModel(source->model_path);
+  auto model = LoadReflectanceModel(source->model_path);
   if (!model.ok()) return ReportError("render", model.error());
   if (Status st = ApplySource(a, *source, &*request); !st.ok()) return ReportError("render", st.error());
 
-  auto output = Relight(*model, *request);
+  // A model of 8-bit photographs renders, unless asked otherwise, as the photographs were.
+  if ((*model)->encoding() == ValueEncoding::kSrgb && request->display == RenderDisplay::kToneMap &&
+      a.tonemap_name.empty()) {
+    request->display = RenderDisplay::kEncoded;
+  }
+  auto output = Relight(**model, *request);
   if (!output.ok()) return ReportError("render", output.error());
   auto files = WriteRender(*output, *request, a.out, a.fps);
   if (!files.ok()) return ReportError("render", files.error());
@@ -197,8 +202,9 @@ int RunRender(int argc, char** argv) {
     const size_t n = request->lamps.size();
     std::printf("rig render: wrote %s (%zu lamp%s%s)\n", a.out.c_str(), n, n == 1 ? "" : "s",
                 request->display == RenderDisplay::kExposure ? fmt::format(", exposure {} s", a.exposure_s).c_str()
-                : request->display == RenderDisplay::kRadiance
-                    ? ", linear radiance"
+                : request->display == RenderDisplay::kRadiance ? ", linear radiance"
+                : request->display == RenderDisplay::kEncoded
+                    ? ", sRGB as the photographs (no tone mapping)"
                     : fmt::format(", tone mapping {}", ToneMapMethodName(output->tonemap.method)).c_str());
     return 0;
   }

@@ -48,7 +48,7 @@ RelightLamp Lamp(double h, double v, std::array<double, 3> rgb = {1, 1, 1}, doub
 cv::Mat RenderOne(const Model& model, std::vector<RelightLamp> lamps) {
   RelightRequest request;
   request.lamps = std::move(lamps);
-  auto out = Relight(model, request);
+  auto out = Relight(*WrapHarmonic(model), request);
   EXPECT_TRUE(out.ok()) << out.error().ToString();
   if (!out.ok()) return {};
   EXPECT_EQ(out->radiance.size(), 1u);
@@ -88,7 +88,7 @@ TEST(Relight, LampsOutsideTheSampledRegionAreRefusedUnlessExtrapolated) {
   const Model model = SyntheticModel();
   RelightRequest request;
   request.lamps = {Lamp(150, 60)};
-  auto refused = Relight(model, request);
+  auto refused = Relight(*WrapHarmonic(model), request);
   ASSERT_FALSE(refused.ok());
   EXPECT_EQ(refused.error().code, ErrorCode::kInvalidInput);
   EXPECT_NE(refused.error().message.find("outside the sampled region"), std::string::npos);
@@ -96,7 +96,7 @@ TEST(Relight, LampsOutsideTheSampledRegionAreRefusedUnlessExtrapolated) {
   std::vector<std::string> warnings;
   request.extrapolate = true;
   request.on_warning = [&](const std::string& m) { warnings.push_back(m); };
-  auto rendered = Relight(model, request);
+  auto rendered = Relight(*WrapHarmonic(model), request);
   ASSERT_TRUE(rendered.ok()) << rendered.error().ToString();
   ASSERT_EQ(warnings.size(), 1u);
   EXPECT_NE(warnings[0].find("extrapolated"), std::string::npos);
@@ -104,7 +104,7 @@ TEST(Relight, LampsOutsideTheSampledRegionAreRefusedUnlessExtrapolated) {
   // A sweep leaving the region: refused within --sweep.
   RelightRequest sweep;
   sweep.sweep = SampleLampPath({Lamp(0, 15), Lamp(170, 15)}, 8);
-  auto swept = Relight(model, sweep);
+  auto swept = Relight(*WrapHarmonic(model), sweep);
   ASSERT_FALSE(swept.ok());
   EXPECT_EQ(swept.error().context.rfind("--sweep", 0), 0u) << swept.error().ToString();
 }
@@ -122,7 +122,7 @@ TEST(Relight, SweepRunsAlongItsPathWithOneToneMappingAndIsWrittenOnce) {
   request.lamps = {Lamp(30, 0)};
   request.sweep = path;
   request.display = RenderDisplay::kToneMap;
-  auto out = Relight(model, request);
+  auto out = Relight(*WrapHarmonic(model), request);
   ASSERT_TRUE(out.ok()) << out.error().ToString();
   ASSERT_EQ(out->radiance.size(), 5u);
   // Each frame: the held lamp plus the moving one.

@@ -1,0 +1,741 @@
+// PCA of multi-light samples with a fitted octahedral grid per component (relight's
+// "bilinear" layout), coefficients refitted through the stored basis, masked samples fitted
+// around, planes quantised as relight does and written as RGB JPEGs.
+#include "process/model/pca.h"
+
+#include <algorithm>
+#include <atomic>
+#include <functional>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <numeric>
+#include <random>
+#include <thread>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
+#include <Eigen/Sparse>
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "process/io/jpeg_io.h"
+
+namespace rig {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+// Relight's octahedral map of a direction onto the grid, and the four bilinear weights.
+void OctaWeights(const Vec3& d, int res, int node[4], double w[4]) {
+  const double s = std::abs(d[0]) + std::abs(d[1]) + std::abs(d[2]);
+  const double x = (d[0] + d[1]) / s, y = (d[1] - d[0]) / s;
+  const double u = (x + 1) / 2 * (res - 1), v = (y + 1) / 2 * (res - 1);
+  const int sx = std::clamp(static_cast<int>(std::floor(u)), 0, res - 2);
+  const int sy = std::clamp(static_cast<int>(std::floor(v)), 0, res - 2);
+  const double dx = u - sx, dy = v - sy;
+  node[0] = sx + sy * res;
+  node[1] = sx + 1 + sy * res;
+  node[2] = sx + (sy + 1) * res;
+  node[3] = sx + 1 + (sy + 1) * res;
+  w[0] = (1 - dx) * (1 - dy);
+  w[1] = dx * (1 - dy);
+  w[2] = (1 - dx) * dy;
+  w[3] = dx * dy;
+}
+
+Eigen::MatrixXd GridWeights(const std::vector<Vec3>& lights, int res) {
+  Eigen::MatrixXd w = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(lights.size()), res * res);
+  for (size_t l = 0; l < lights.size(); ++l) {
+    int node[4];
+    double wt[4];
+    OctaWeights(lights[l], res, node, wt);
+    for (int i = 0; i < 4; ++i) w(static_cast<Eigen::Index>(l), node[i]) += wt[i];
+  }
+  return w;
+}
+
+// The prior's quadratic form over the grid nodes: gᵀ·Q·g.
+Eigen::MatrixXd GridPriorMatrix(int res, GridPrior prior) {
+  const int n = res * res;
+  // Graph Laplacian of the 4-neighbour grid (Neumann at the borders), sparse.
+  std::vector<Eigen::Triplet<double>> t;
+  for (int y = 0; y < res; ++y) {
+    for (int x = 0; x < res; ++x) {
+      const int i = x + y * res;
+      const int nb[4][2] = {{x - 1, y}, {x + 1, y}, {x, y - 1}, {x, y + 1}};
+      for (const auto& q : nb) {
+        if (q[0] < 0 || q[0] >= res || q[1] < 0 || q[1] >= res) continue;
+        t.emplace_back(i, i, 1.0);
+        t.emplace_back(i, q[0] + q[1] * res, -1.0);
+      }
+    }
+  }
+  Eigen::SparseMatrix<double> lap(n, n);
+  lap.setFromTriplets(t.begin(), t.end());
+  if (prior == GridPrior::kMembrane) return Eigen::MatrixXd(lap);
+  const Eigen::SparseMatrix<double> bending = lap.transpose() * lap;
+  return Eigen::MatrixXd(bending);
+}
+
+// The prior's Cholesky factor depends on the grid alone: computed once per (res, prior).
+struct PriorFactor {
+  Eigen::LLT<Eigen::MatrixXd> llt;
+};
+const PriorFactor& CachedPriorFactor(int res, GridPrior prior) {
+  static std::mutex mutex;
+  static std::map<std::pair<int, int>, std::unique_ptr<PriorFactor>> cache;
+  std::lock_guard<std::mutex> lock(mutex);
+  auto& slot = cache[{res, static_cast<int>(prior)}];
+  if (!slot) {
+    Eigen::MatrixXd q = GridPriorMatrix(res, prior);
+    q /= std::max(q.trace() / static_cast<double>(q.rows()), 1e-12);
+    q.diagonal().array() += 1e-7;
+    slot = std::make_unique<PriorFactor>();
+    slot->llt.compute(q);
+  }
+  return *slot;
+}
+
+struct GridFit {
+  GridPrior prior;
+  double smoothness;
+  double loo_rms;
+  Eigen::MatrixXd grid;  // nodes × functions
+};
+
+// Fits every function (columns of f, one row per light) onto the grid with one shared
+// smoother; with `smoothness` < 0 the prior's kind and strength minimise the weighted
+// leave-one-out error over lights (exact for a linear smoother: r / (1 − H_ll)).
+GridFit FitGrid(const Eigen::MatrixXd& w, const Eigen::MatrixXd& f, const Eigen::VectorXd& weight,
+                int res, double smoothness) {
+  const double data_scale = std::max(w.squaredNorm() / static_cast<double>(w.cols()), 1e-12);
+  const double total_weight = weight.sum() * static_cast<double>(f.rows());
+  GridFit best{GridPrior::kBending, 0, std::numeric_limits<double>::infinity(), {}};
+  for (GridPrior prior : {GridPrior::kBending, GridPrior::kMembrane}) {
+    // With M = Q + δI = L·Lᵀ and K = L⁻¹·Wᵀ = U·Σ·Vᵀ (thin), every strength λ costs only
+    // diagonal work: S = (WᵀW + λM)⁻¹Wᵀ = L⁻ᵀ·U·diag(σ/(σ²+λ))·Vᵀ, H = W·S = V·diag(σ²/(σ²+λ))·Vᵀ.
+    const PriorFactor& factor = CachedPriorFactor(res, prior);
+    const Eigen::MatrixXd k =
+        factor.llt.matrixL().solve(w.transpose()) / std::sqrt(data_scale);  // nodes × lights
+    // Thin SVD of K from the small eigenproblem KᵀK = V·Σ²·Vᵀ (lights × lights).
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> small(k.transpose() * k);
+    const Eigen::VectorXd sigma = small.eigenvalues().cwiseMax(0).cwiseSqrt();
+    const Eigen::MatrixXd& v = small.eigenvectors();
+    struct {
+      const Eigen::MatrixXd& matrixV() const { return *v_; }
+      Eigen::MatrixXd matrixU() const { return (*k_) * (*v_) * inv_.asDiagonal(); }
+      const Eigen::MatrixXd* v_;
+      const Eigen::MatrixXd* k_;
+      Eigen::VectorXd inv_;
+    } svd{&v, &k, (sigma.array() > 1e-12 * sigma.maxCoeff()).select(sigma.array().inverse(), 0.0).matrix()};
+    const auto& llt = factor.llt;
+    const Eigen::MatrixXd vtf = v.transpose() * f;
+    std::vector<double> strengths;
+    if (smoothness >= 0) {
+      strengths.push_back(smoothness);
+    } else {
+      for (double e = -5; e <= 1.01; e += 0.5) strengths.push_back(std::pow(10.0, e));
+    }
+    for (double lambda : strengths) {
+      const Eigen::ArrayXd shrink = sigma.array().square() / (sigma.array().square() + lambda);
+      const Eigen::MatrixXd fitted = v * (shrink.matrix().asDiagonal() * vtf);
+      const Eigen::VectorXd hat_diag = (v.array().square().rowwise() * shrink.transpose()).rowwise().sum();
+      double err = 0;
+      for (Eigen::Index l = 0; l < f.rows(); ++l) {
+        const double denom = std::max(1.0 - hat_diag(l), 1e-6);
+        err += ((f.row(l) - fitted.row(l)).array().square() * weight.transpose().array()).sum() /
+               (denom * denom);
+      }
+      const double rms = std::sqrt(err / total_weight);
+      if (rms < best.loo_rms) {
+        const Eigen::ArrayXd gain = sigma.array() / (sigma.array().square() + lambda);
+        const Eigen::MatrixXd inner = svd.matrixU() * (gain.matrix().asDiagonal() * vtf);
+        best = {prior, lambda, rms,
+                llt.matrixU().solve(inner) / std::sqrt(data_scale)};
+      }
+    }
+    if (smoothness >= 0) break;  // a given strength: the bending prior
+  }
+  return best;
+}
+
+// Deterministic sample of pixel indices: one per stride, at a seeded offset within it.
+std::vector<size_t> SamplePixels(size_t pixels, size_t wanted, uint64_t seed) {
+  std::vector<size_t> out;
+  if (wanted >= pixels) {
+    out.resize(pixels);
+    std::iota(out.begin(), out.end(), size_t{0});
+    return out;
+  }
+  const double stride = static_cast<double>(pixels) / static_cast<double>(wanted);
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  out.reserve(wanted);
+  for (size_t i = 0; i < wanted; ++i) {
+    const size_t p = static_cast<size_t>((static_cast<double>(i) + u(rng)) * stride);
+    out.push_back(std::min(p, pixels - 1));
+  }
+  return out;
+}
+
+void ParallelFor(size_t n, int threads, const std::function<void(size_t, size_t)>& body) {
+  threads = std::max(1, std::min<int>(threads, static_cast<int>((n + 4095) / 4096)));
+  if (threads == 1) {
+    body(0, n);
+    return;
+  }
+  std::vector<std::thread> pool;
+  const size_t chunk = (n + threads - 1) / threads;
+  for (int t = 0; t < threads; ++t) {
+    const size_t lo = t * chunk, hi = std::min(n, lo + chunk);
+    if (lo < hi) pool.emplace_back(body, lo, hi);
+  }
+  for (auto& th : pool) th.join();
+}
+
+// Quantiles of each column (sorted copies; the sample is small).
+std::vector<PlaneQuantisation> Ranges(const Eigen::MatrixXf& coeffs, double quantile) {
+  std::vector<PlaneQuantisation> out(static_cast<size_t>(coeffs.cols()));
+  std::vector<float> v(static_cast<size_t>(coeffs.rows()));
+  for (Eigen::Index p = 0; p < coeffs.cols(); ++p) {
+    for (Eigen::Index i = 0; i < coeffs.rows(); ++i) v[static_cast<size_t>(i)] = coeffs(i, p);
+    const auto at = [&](double q) {
+      const size_t i = std::min(v.size() - 1, static_cast<size_t>(q * (v.size() - 1) + 0.5));
+      std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(i), v.end());
+      return static_cast<double>(v[i]);
+    };
+    PlaneQuantisation& q = out[static_cast<size_t>(p)];
+    q.min = at(quantile);
+    q.max = at(1 - quantile);
+    if (!(q.max > q.min)) q.max = q.min + 1;
+  }
+  return out;
+}
+
+void Decompose(PcaComponents* pc, int count) {
+  const Eigen::Index dim = pc->covariance.rows();
+  count = std::max(1, std::min<int>(count, static_cast<int>(dim) - 1));
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(pc->covariance);
+  pc->vectors.resize(dim, count);
+  pc->eigenvalues.resize(count);
+  for (int p = 0; p < count; ++p) {
+    pc->vectors.col(p) = eig.eigenvectors().col(dim - 1 - p);
+    pc->eigenvalues[p] = std::max(0.0, eig.eigenvalues()(dim - 1 - p));
+  }
+}
+
+}  // namespace
+
+const char* PcaMaskModeName(PcaMaskMode mode) {
+  switch (mode) {
+    case PcaMaskMode::kNone: return "none";
+    case PcaMaskMode::kDrop: return "drop";
+    case PcaMaskMode::kHinge: return "hinge";
+  }
+  return "?";
+}
+
+void PcaBasis::Evaluate(const Vec3& direction, double* out) const {
+  int node[4];
+  double w[4];
+  OctaWeights(direction, resolution, node, w);
+  const int nodes = resolution * resolution;
+  for (int p = 0; p <= components; ++p) {
+    for (int c = 0; c < 3; ++c) {
+      double v = 0;
+      for (int i = 0; i < 4; ++i) v += w[i] * values[(static_cast<size_t>(p) * nodes + node[i]) * 3 + c];
+      out[p * 3 + c] = v;
+    }
+  }
+}
+
+Result<PcaComponents> ComputePcaComponents(const LightSamples& samples, const PcaOptions& o,
+                                           int count) {
+  const int lights = samples.lights();
+  const size_t pixels = samples.pixels();
+  const int dim = lights * 3;
+  if (lights < 4 || pixels == 0 || samples.values.size() != pixels * dim) {
+    return MakeError(ErrorCode::kInvalidInput, "pca", "{} lights and {} pixels: nothing to fit",
+                     lights, pixels);
+  }
+  PcaComponents pc;
+  pc.lights = samples.directions;
+  pc.subset = SamplePixels(pixels, o.basis_pixels, o.seed);
+  const Eigen::Index m = static_cast<Eigen::Index>(pc.subset.size());
+  Eigen::MatrixXf xs(m, dim);
+  for (Eigen::Index i = 0; i < m; ++i) {
+    const uint8_t* v = samples.values.data() + pc.subset[static_cast<size_t>(i)] * dim;
+    for (int d = 0; d < dim; ++d) xs(i, d) = v[d];
+  }
+  pc.mean = xs.cast<double>().colwise().mean().transpose();
+  xs.rowwise() -= pc.mean.cast<float>().transpose();
+  Eigen::MatrixXf gram = Eigen::MatrixXf::Zero(dim, dim);
+  gram.selfadjointView<Eigen::Lower>().rankUpdate(xs.transpose());  // half a GEMM
+  gram.triangularView<Eigen::StrictlyUpper>() = gram.transpose();
+  pc.covariance = gram.cast<double>() / static_cast<double>(std::max<Eigen::Index>(m - 1, 1));
+  Decompose(&pc, count);
+  return pc;
+}
+
+PcaComponents PcaComponentsWithout(const PcaComponents& full, const std::vector<int>& dropped,
+                                   int count) {
+  PcaComponents pc;
+  pc.subset = full.subset;
+  std::vector<int> keep;
+  const int lights = static_cast<int>(full.lights.size());
+  for (int l = 0; l < lights; ++l) {
+    if (std::find(dropped.begin(), dropped.end(), l) != dropped.end()) continue;
+    pc.lights.push_back(full.lights[l]);
+    for (int c = 0; c < 3; ++c) keep.push_back(l * 3 + c);
+  }
+  const Eigen::Index dim = static_cast<Eigen::Index>(keep.size());
+  pc.mean.resize(dim);
+  pc.covariance.resize(dim, dim);
+  for (Eigen::Index i = 0; i < dim; ++i) {
+    pc.mean(i) = full.mean(keep[i]);
+    for (Eigen::Index j = 0; j < dim; ++j) pc.covariance(i, j) = full.covariance(keep[i], keep[j]);
+  }
+  Decompose(&pc, count);
+  return pc;
+}
+
+Result<PcaModel> FitPca(const LightSamples& samples, const PcaOptions& o, PcaFitStats* stats) {
+  const auto t0 = Clock::now();
+  RIG_ASSIGN_OR_RETURN(PcaComponents pc, ComputePcaComponents(samples, o, o.components));
+  RIG_ASSIGN_OR_RETURN(PcaModel m, FitPcaWith(samples, pc, o, stats));
+  if (stats) stats->time_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  return m;
+}
+
+Result<PcaModel> FitPcaWith(const LightSamples& samples, const PcaComponents& pc,
+                            const PcaOptions& o, PcaFitStats* stats) {
+  const auto t0 = Clock::now();
+  const int lights = samples.lights();
+  const size_t pixels = samples.pixels();
+  const int dim = lights * 3;
+  if (pc.mean.size() != dim || samples.values.size() != pixels * dim) {
+    return MakeError(ErrorCode::kInternal, "pca", "components of {} values for samples of {}",
+                     pc.mean.size(), dim);
+  }
+  const int k = std::min<int>(o.components, static_cast<int>(pc.vectors.cols()));
+  if (k < 1) return MakeError(ErrorCode::kInvalidInput, "pca", "no components asked");
+  const int res = o.grid_resolution;
+  if (res < 2 || res > 64) {
+    return MakeError(ErrorCode::kInvalidInput, "pca", "grid resolution {} outside 2..64", res);
+  }
+  RIG_ASSIGN_OR_RETURN(PcaBasis basis, FitPcaBasis(pc, k, res, o.smoothness));
+  RIG_ASSIGN_OR_RETURN(PcaModel model, FitPcaCoefficients(samples, std::move(basis), o, pc.subset, stats));
+  if (stats) stats->time_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  return model;
+}
+
+Result<PcaBasis> FitPcaBasis(const PcaComponents& pc, int k, int res, double smoothness) {
+  const int lights = static_cast<int>(pc.lights.size());
+  if (k < 1 || k > pc.vectors.cols() || res < 2 || res > 64) {
+    return MakeError(ErrorCode::kInvalidInput, "pca", "{} components on a {} grid: out of range", k, res);
+  }
+  const Eigen::VectorXd& mean = pc.mean;
+  const Eigen::MatrixXd comps = pc.vectors.leftCols(k);
+  const std::vector<double> eigenvalues(pc.eigenvalues.begin(), pc.eigenvalues.begin() + k);
+
+  // 2. The light dependence of the mean and of each component, fitted onto the grid.
+  Eigen::MatrixXd f(lights, 3 * (k + 1));
+  Eigen::VectorXd weight(3 * (k + 1));
+  for (int l = 0; l < lights; ++l) {
+    for (int c = 0; c < 3; ++c) {
+      f(l, c) = mean(l * 3 + c);
+      for (int p = 0; p < k; ++p) f(l, (p + 1) * 3 + c) = comps(l * 3 + c, p);
+    }
+  }
+  for (int c = 0; c < 3; ++c) {
+    weight(c) = 1;
+    for (int p = 0; p < k; ++p) weight((p + 1) * 3 + c) = eigenvalues[p];
+  }
+  const Eigen::MatrixXd w = GridWeights(pc.lights, res);
+  const GridFit grid = FitGrid(w, f, weight, res, smoothness);
+
+  // 3. The basis as relight stores it: the mean as integers 0..255, components as
+  //    127 + range·e with range = 127 / max|e|.
+  PcaBasis b;
+  b.components = k;
+  b.resolution = res;
+  b.prior = grid.prior;
+  b.smoothness = grid.smoothness;
+  b.light_loo_rms = grid.loo_rms;
+  b.eigenvalues = eigenvalues;
+  const int nodes = res * res;
+  b.stored.resize(static_cast<size_t>(k + 1) * nodes * 3);
+  b.values.resize(b.stored.size());
+  b.range.assign(k, 1);
+  for (int p = 0; p <= k; ++p) {
+    double peak = 0;
+    if (p > 0) {
+      for (int n = 0; n < nodes; ++n)
+        for (int c = 0; c < 3; ++c) peak = std::max(peak, std::abs(grid.grid(n, p * 3 + c)));
+      b.range[p - 1] = peak > 0 ? 127.0 / peak : 1.0;
+    }
+    for (int n = 0; n < nodes; ++n) {
+      for (int c = 0; c < 3; ++c) {
+        const size_t i = (static_cast<size_t>(p) * nodes + n) * 3 + c;
+        const double g = grid.grid(n, p * 3 + c);
+        if (p == 0) {
+          b.stored[i] = std::clamp(static_cast<int>(std::lround(g)), 0, 255);
+          b.values[i] = b.stored[i];
+        } else {
+          b.stored[i] = std::clamp(static_cast<int>(std::lround(127 + b.range[p - 1] * g)), 0, 254);
+          b.values[i] = (b.stored[i] - 127) / b.range[p - 1];
+        }
+      }
+    }
+  }
+
+  return b;
+}
+
+Result<PcaModel> FitPcaCoefficients(const LightSamples& samples, PcaBasis basis,
+                                    const PcaOptions& o, const std::vector<size_t>& subset,
+                                    PcaFitStats* stats) {
+  const auto t0 = Clock::now();
+  const int lights = samples.lights();
+  const size_t pixels = samples.pixels();
+  const int dim = lights * 3;
+  const int k = basis.components;
+  PcaModel model;
+  model.width_ = samples.width;
+  model.height_ = samples.height;
+  model.jpeg_quality_ = o.jpeg_quality;
+  model.lights_ = samples.directions;
+  model.basis_ = std::move(basis);
+  const PcaBasis& b = model.basis_;
+  // 4. The design at the sampled lights through the stored basis, and its projector.
+  Eigen::MatrixXd a(dim, k);
+  Eigen::VectorXd mu(dim);
+  {
+    std::vector<double> at(static_cast<size_t>(k + 1) * 3);
+    for (int l = 0; l < lights; ++l) {
+      b.Evaluate(samples.directions[l], at.data());
+      for (int c = 0; c < 3; ++c) {
+        mu(l * 3 + c) = at[c];
+        for (int p = 0; p < k; ++p) a(l * 3 + c, p) = at[(p + 1) * 3 + c];
+      }
+    }
+  }
+  const Eigen::MatrixXd ata = a.transpose() * a;
+  const Eigen::LDLT<Eigen::MatrixXd> ata_ldlt(ata);
+  const Eigen::MatrixXf proj = ata_ldlt.solve(a.transpose()).cast<float>();  // k × dim
+  const Eigen::VectorXf muf = mu.cast<float>();
+  const Eigen::MatrixXf af = a.cast<float>();
+
+  const bool masked = o.mask != PcaMaskMode::kNone;
+  const int black = o.thresholds.black_max, clipped = o.thresholds.clipped_min;
+  // Coefficients of a block of pixels, masked samples fitted around.
+  std::atomic<size_t> n_masked{0}, n_refit{0};
+  auto solve_block = [&](const size_t* index, size_t count, Eigen::MatrixXf* out) {
+    Eigen::MatrixXf y(dim, static_cast<Eigen::Index>(count));
+    for (size_t i = 0; i < count; ++i) {
+      const uint8_t* v = samples.values.data() + index[i] * dim;
+      for (int d = 0; d < dim; ++d) y(d, static_cast<Eigen::Index>(i)) = v[d] - muf(d);
+    }
+    *out = proj * y;  // k × count
+    if (!masked) return;
+    size_t local_masked = 0, local_refit = 0;
+    std::vector<int> drop;
+    Eigen::VectorXf pred(dim);
+    for (size_t i = 0; i < count; ++i) {
+      const uint8_t* v = samples.values.data() + index[i] * dim;
+      drop.clear();
+      bool any = false;
+      for (int d = 0; d < dim; ++d) {
+        if (v[d] > black && v[d] < clipped) continue;
+        if (!any && o.mask == PcaMaskMode::kHinge) pred.noalias() = af * out->col(static_cast<Eigen::Index>(i));
+        any = true;
+        ++local_masked;
+        // Hinge: a clipped sample is left out where the fit already reaches it, a black one
+        // where the fit is already below it; elsewhere it pulls the fit towards its value.
+        const float p = muf(d) + (o.mask == PcaMaskMode::kHinge ? pred(d) : 0.0f);
+        if (o.mask == PcaMaskMode::kDrop || (v[d] >= clipped && p >= v[d]) ||
+            (v[d] <= black && p <= v[d]))
+          drop.push_back(d);
+      }
+      if (!any || drop.empty() || static_cast<int>(drop.size()) > dim - 2 * k) continue;
+      Eigen::MatrixXd g = ata;
+      Eigen::VectorXd rhs = a.transpose() * y.col(static_cast<Eigen::Index>(i)).cast<double>();
+      for (int d : drop) {
+        g.noalias() -= a.row(d).transpose() * a.row(d);
+        rhs.noalias() -= a.row(d).transpose() * static_cast<double>(y(d, static_cast<Eigen::Index>(i)));
+      }
+      const Eigen::LLT<Eigen::MatrixXd> llt(g);
+      // Too few samples left to hold every component: keep the unmasked solution.
+      if (llt.info() != Eigen::Success) continue;
+      const auto diag = llt.matrixLLT().diagonal();
+      if (!(diag.minCoeff() > 1e-4 * diag.maxCoeff())) continue;
+      out->col(static_cast<Eigen::Index>(i)) = llt.solve(rhs).cast<float>();
+      ++local_refit;
+    }
+    n_masked += local_masked;
+    n_refit += local_refit;
+  };
+
+  // 5. Every pixel's coefficients; ranges from the sampled pixels' quantiles; quantised.
+  const size_t block = 2048;
+  Eigen::MatrixXf coeffs(k, static_cast<Eigen::Index>(pixels));
+  ParallelFor(pixels, o.threads, [&](size_t lo, size_t hi) {
+    std::vector<size_t> index;
+    Eigen::MatrixXf part;
+    for (size_t start = lo; start < hi; start += block) {
+      const size_t count = std::min(block, hi - start);
+      index.resize(count);
+      std::iota(index.begin(), index.end(), start);
+      solve_block(index.data(), count, &part);
+      coeffs.middleCols(static_cast<Eigen::Index>(start), static_cast<Eigen::Index>(count)) = part;
+    }
+  });
+  {
+    Eigen::MatrixXf sampled(static_cast<Eigen::Index>(subset.size()), k);
+    for (size_t i = 0; i < subset.size(); ++i)
+      sampled.row(static_cast<Eigen::Index>(i)) = coeffs.col(static_cast<Eigen::Index>(subset[i])).transpose();
+    model.quant_ = Ranges(sampled, o.quantile);
+  }
+  model.planes_.resize(k);
+  for (int p = 0; p < k; ++p) {
+    const PlaneQuantisation& q = model.quant_[p];
+    const float inv = static_cast<float>(255.0 / (q.max - q.min));
+    const float lo_v = static_cast<float>(q.min);
+    model.planes_[p] = cv::Mat(samples.height, samples.width, CV_8U);
+    uint8_t* dst = model.planes_[p].ptr<uint8_t>();
+    for (size_t i = 0; i < pixels; ++i) {
+      const float v = std::nearbyint((coeffs(p, static_cast<Eigen::Index>(i)) - lo_v) * inv);
+      dst[i] = static_cast<uint8_t>(std::clamp(v, 0.0f, 255.0f));
+    }
+  }
+  if (stats) {
+    stats->masked_samples = n_masked;
+    stats->refitted_pixels = n_refit;
+    stats->time_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  }
+  return model;
+}
+
+cv::Mat PcaModel::Render(const Vec3& direction) const {
+  const int k = basis_.components;
+  std::vector<double> at(static_cast<size_t>(k + 1) * 3);
+  basis_.Evaluate(direction, at.data());
+  // out_c = B0c + Σ_p (byte_p·scale_p + min_p)·B_pc = base_c + Σ_p byte_p·s_pc
+  float base[3], s[64][3];
+  for (int c = 0; c < 3; ++c) {
+    double v = at[c];
+    for (int p = 0; p < k; ++p) {
+      v += quant_[p].min * at[(p + 1) * 3 + c];
+      s[p][c] = static_cast<float>(quant_[p].scale() * at[(p + 1) * 3 + c] / 255.0);
+    }
+    base[c] = static_cast<float>(v / 255.0);
+  }
+  cv::Mat out(height_, width_, CV_32FC3);
+  const size_t n = static_cast<size_t>(width_) * height_;
+  float* o = out.ptr<float>();
+  for (size_t i = 0; i < n; ++i) {
+    float r = base[0], g = base[1], bl = base[2];
+    for (int p = 0; p < k; ++p) {
+      const float byte = planes_[p].ptr<uint8_t>()[i];
+      r += byte * s[p][0];
+      g += byte * s[p][1];
+      bl += byte * s[p][2];
+    }
+    o[i * 3 + 0] = bl;
+    o[i * 3 + 1] = g;
+    o[i * 3 + 2] = r;
+  }
+  return out;
+}
+
+Status PcaModel::Save(const std::string& folder) const {
+  std::error_code ec;
+  fs::create_directories(folder, ec);
+  if (ec) return MakeError(ErrorCode::kIo, folder, "cannot create the folder: {}", ec.message());
+  const int k = basis_.components;
+  const int files = (k + 2) / 3;
+  for (int j = 0; j < files; ++j) {
+    cv::Mat rgb(height_, width_, CV_8UC3, cv::Scalar(0, 0, 0));
+    for (int c = 0; c < 3; ++c) {
+      const int p = 3 * j + c;
+      if (p >= k) continue;
+      const uint8_t* src = planes_[p].ptr<uint8_t>();
+      uint8_t* dst = rgb.ptr<uint8_t>();
+      const size_t n = static_cast<size_t>(width_) * height_;
+      for (size_t i = 0; i < n; ++i) dst[i * 3 + c] = src[i];
+    }
+    RIG_TRY(WriteJpeg((fs::path(folder) / fmt::format("plane_{}.jpg", j)).string(), rgb,
+                      JpegColor::kRgb, jpeg_quality_));
+  }
+  nlohmann::ordered_json info;
+  info["width"] = width_;
+  info["height"] = height_;
+  info["format"] = "jpg";
+  info["type"] = "bilinear";
+  info["resolution"] = basis_.resolution;
+  info["colorspace"] = "mrgb";
+  std::vector<double> lights;
+  for (const auto& l : lights_) {
+    for (double v : l) lights.push_back(std::round(v * 1000) / 1000);
+  }
+  info["lights"] = lights;
+  info["nplanes"] = k;
+  info["quality"] = jpeg_quality_;
+  info["colorprofile"] = "sRGB";
+  info["basis"] = basis_.stored;
+  nlohmann::ordered_json material;
+  std::vector<double> scale, bias, range;
+  for (int p = 0; p < k; ++p) {
+    scale.push_back(quant_[p].scale());
+    bias.push_back(quant_[p].bias());
+    range.push_back(basis_.range[p]);
+  }
+  material["scale"] = scale;
+  material["bias"] = bias;
+  material["range"] = range;
+  info["materials"] = nlohmann::ordered_json::array({material});
+  // Ours, ignored by relight's readers: what produced the model.
+  info["rig"] = {{"family", "pca-bilinear"},
+                 {"prior", basis_.prior == GridPrior::kBending ? "bending" : "membrane"},
+                 {"smoothness", basis_.smoothness},
+                 {"light_loo_rms", basis_.light_loo_rms},
+                 {"eigenvalues", basis_.eigenvalues}};
+  const fs::path path = fs::path(folder) / "info.json";
+  const fs::path tmp = fs::path(folder) / ".info.json.tmp";
+  {
+    std::ofstream f(tmp);
+    f << info.dump() << "\n";
+    f.flush();
+    if (!f) return MakeError(ErrorCode::kIo, tmp.string(), "cannot write");
+  }
+  fs::rename(tmp, path, ec);
+  if (ec) return MakeError(ErrorCode::kIo, path.string(), "cannot write: {}", ec.message());
+  return Ok();
+}
+
+Result<PcaModel> PcaModel::Load(const std::string& folder) {
+  const std::string path = (fs::path(folder) / "info.json").string();
+  std::ifstream f(path);
+  if (!f) return MakeError(ErrorCode::kNotFound, path, "cannot open");
+  nlohmann::json info;
+  try {
+    info = nlohmann::json::parse(f);
+  } catch (const nlohmann::json::exception& e) {
+    return MakeError(ErrorCode::kInvalidInput, path, "not JSON: {}", e.what());
+  }
+  PcaModel m;
+  try {
+    if (info.at("type").get<std::string>() != "bilinear" ||
+        info.at("colorspace").get<std::string>() != "mrgb") {
+      return MakeError(ErrorCode::kUnsupported, path,
+                       "type '{}' colorspace '{}': only bilinear mrgb is read here",
+                       info.at("type").get<std::string>(), info.at("colorspace").get<std::string>());
+    }
+    m.width_ = info.at("width").get<int>();
+    m.height_ = info.at("height").get<int>();
+    const int k = info.at("nplanes").get<int>();
+    const int res = info.at("resolution").get<int>();
+    if (m.width_ <= 0 || m.height_ <= 0 || m.width_ > 65500 || m.height_ > 65500 || k < 1 ||
+        k > 64 || res < 2 || res > 64) {
+      return MakeError(ErrorCode::kInvalidInput, path,
+                       "width {} height {} nplanes {} resolution {} out of range", m.width_,
+                       m.height_, k, res);
+    }
+    m.jpeg_quality_ = info.value("quality", 95);
+    PcaBasis& b = m.basis_;
+    b.components = k;
+    b.resolution = res;
+    b.stored = info.at("basis").get<std::vector<int>>();
+    const size_t want = static_cast<size_t>(k + 1) * res * res * 3;
+    if (b.stored.size() != want) {
+      return MakeError(ErrorCode::kInvalidInput, path, "'basis' has {} values, {} expected",
+                       b.stored.size(), want);
+    }
+    const auto& mat = info.at("materials").at(0);
+    const auto scale = mat.at("scale").get<std::vector<double>>();
+    const auto bias = mat.at("bias").get<std::vector<double>>();
+    b.range = mat.at("range").get<std::vector<double>>();
+    if (scale.size() != static_cast<size_t>(k) || bias.size() != scale.size() ||
+        b.range.size() != scale.size()) {
+      return MakeError(ErrorCode::kInvalidInput, path,
+                       "materials: scale/bias/range sizes {} {} {} for {} planes", scale.size(),
+                       bias.size(), b.range.size(), k);
+    }
+    for (int p = 0; p < k; ++p) {
+      if (!std::isfinite(scale[p]) || !std::isfinite(bias[p]) || !std::isfinite(b.range[p]) ||
+          b.range[p] == 0) {
+        return MakeError(ErrorCode::kInvalidInput, path, "materials: plane {} not finite", p);
+      }
+      // c = 255·(byte/255 − bias)·scale = byte·scale − 255·bias·scale
+      PlaneQuantisation q;
+      q.min = -255.0 * bias[p] * scale[p];
+      q.max = q.min + 255.0 * scale[p];
+      m.quant_.push_back(q);
+    }
+    b.values.resize(want);
+    const int nodes = res * res;
+    for (size_t i = 0; i < want; ++i) {
+      const int p = static_cast<int>(i / (static_cast<size_t>(nodes) * 3));
+      b.values[i] = p == 0 ? b.stored[i] : (b.stored[i] - 127) / b.range[p - 1];
+    }
+    if (info.contains("lights")) {
+      const auto l = info.at("lights").get<std::vector<double>>();
+      for (size_t i = 0; i + 2 < l.size(); i += 3) m.lights_.push_back({l[i], l[i + 1], l[i + 2]});
+    }
+    if (info.contains("rig")) {
+      const auto& r = info.at("rig");
+      b.prior = r.value("prior", std::string("bending")) == "membrane" ? GridPrior::kMembrane
+                                                                      : GridPrior::kBending;
+      b.smoothness = r.value("smoothness", 0.0);
+      b.light_loo_rms = r.value("light_loo_rms", 0.0);
+      if (r.contains("eigenvalues")) b.eigenvalues = r.at("eigenvalues").get<std::vector<double>>();
+    }
+  } catch (const nlohmann::json::exception& e) {
+    return MakeError(ErrorCode::kInvalidInput, path, "{}", e.what());
+  }
+  const int k = m.basis_.components;
+  for (int j = 0; j < (k + 2) / 3; ++j) {
+    const std::string plane = (fs::path(folder) / fmt::format("plane_{}.jpg", j)).string();
+    RIG_ASSIGN_OR_RETURN(cv::Mat rgb, ReadJpeg(plane));
+    if (rgb.cols != m.width_ || rgb.rows != m.height_ || rgb.channels() != 3) {
+      return MakeError(ErrorCode::kInvalidInput, plane, "{}x{}x{}, info.json says {}x{}x3",
+                       rgb.cols, rgb.rows, rgb.channels(), m.width_, m.height_);
+    }
+    cv::Mat ch[3];
+    cv::split(rgb, ch);
+    for (int c = 0; c < 3 && 3 * j + c < k; ++c) m.planes_.push_back(ch[c].clone());
+  }
+  return m;
+}
+
+PcaBasis TruncatePcaBasis(const PcaBasis& basis, int k) {
+  PcaBasis b = basis;
+  k = std::clamp(k, 1, basis.components);
+  const size_t n = static_cast<size_t>(k + 1) * basis.resolution * basis.resolution * 3;
+  b.components = k;
+  b.stored.resize(n);
+  b.values.resize(n);
+  b.range.resize(k);
+  b.eigenvalues.resize(std::min<size_t>(b.eigenvalues.size(), k));
+  return b;
+}
+
+uint64_t FolderBytes(const std::string& folder) {
+  uint64_t total = 0;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(folder, ec)) {
+    if (e.is_regular_file(ec)) total += e.file_size(ec);
+  }
+  return total;
+}
+
+}  // namespace rig

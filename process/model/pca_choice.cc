@@ -1,0 +1,284 @@
+// The PCA size chosen by held-out error per byte: one validation split over lights for the
+// model error of every (components, grid), the planes' own JPEG error and size for every
+// quality, the smallest candidate within tolerance of the best within budget.
+#include "process/model/pca_choice.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include <fmt/format.h>
+
+#include "process/io/jpeg_io.h"
+
+namespace rig {
+namespace {
+
+int Digits(int v) { return v >= 100 ? 3 : v >= 10 ? 2 : 1; }
+
+// Characters of relight's "basis" array for the first k components (ints and commas).
+double BasisJsonBytes(const PcaBasis& b, int k) {
+  const size_t n = static_cast<size_t>(k + 1) * b.resolution * b.resolution * 3;
+  double chars = 0;
+  for (size_t i = 0; i < n && i < b.stored.size(); ++i) chars += Digits(b.stored[i]) + 1;
+  return chars;
+}
+
+// The samples of some pixels, as a one-row image.
+LightSamples PickPixels(const LightSamples& s, const std::vector<size_t>& pixels) {
+  LightSamples out;
+  out.width = static_cast<int>(pixels.size());
+  out.height = 1;
+  out.directions = s.directions;
+  const size_t row = static_cast<size_t>(s.lights()) * 3;
+  out.values.resize(pixels.size() * row);
+  for (size_t i = 0; i < pixels.size(); ++i)
+    std::copy_n(s.values.data() + pixels[i] * row, row, out.values.data() + i * row);
+  return out;
+}
+
+// A central crop of at most `max_side`², for measuring compression.
+LightSamples Crop(const LightSamples& s, int max_side, std::vector<size_t>* picked) {
+  const int w = std::min(s.width, max_side), h = std::min(s.height, max_side);
+  const int x0 = (s.width - w) / 2, y0 = (s.height - h) / 2;
+  picked->clear();
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) picked->push_back(static_cast<size_t>(y0 + y) * s.width + x0 + x);
+  LightSamples out = PickPixels(s, *picked);
+  out.width = w;
+  out.height = h;
+  return out;
+}
+
+}  // namespace
+
+Result<PcaChoice> ChoosePca(const LightSamples& s, const PcaComponents& comps,
+                            const PcaChoiceOptions& o) {
+  const int lights = s.lights();
+  int kmax = 0;
+  for (int k : o.components) kmax = std::max(kmax, k);
+  kmax = std::min<int>(kmax, static_cast<int>(comps.vectors.cols()));
+  if (kmax < 1 || o.resolutions.empty() || o.qualities.empty()) {
+    return MakeError(ErrorCode::kInvalidInput, "pca choice", "no candidates");
+  }
+  const double pixels = static_cast<double>(s.pixels());
+
+  // 1. Model error at held-out lights, for every grid and every number of components: the
+  //    components without the validation lights (exact, from the kept covariance), the grid
+  //    fitted to the others, coefficients of a sample of pixels through it.
+  std::vector<int> held;
+  for (int l = 0; l < lights; l += std::max(2, o.validation_every)) held.push_back(l);
+  const PcaComponents train = PcaComponentsWithout(comps, held, kmax);
+  std::vector<size_t> eval;
+  const size_t step = std::max<size_t>(1, comps.subset.size() / o.validation_pixels);
+  for (size_t i = 0; i < comps.subset.size(); i += step) eval.push_back(comps.subset[i]);
+  const LightSamples picked = PickPixels(s, eval);
+  const LightSamples fit_part = [&] {
+    LightSamples t = picked;
+    for (auto it = held.rbegin(); it != held.rend(); ++it) t = WithoutLight(t, *it);
+    return t;
+  }();
+  std::vector<size_t> all_eval(eval.size());
+  for (size_t i = 0; i < eval.size(); ++i) all_eval[i] = i;
+
+  PcaChoice choice;
+  choice.options = o.base;
+  struct GridModelError {
+    int res;
+    std::vector<double> mse_by_k;  // index k
+    PcaBasis full_basis;           // on all lights, for sizes
+  };
+  std::vector<GridModelError> by_grid;
+  for (int res : o.resolutions) {
+    GridModelError g{res, std::vector<double>(kmax + 1, 0), {}};
+    RIG_ASSIGN_OR_RETURN(PcaBasis basis, FitPcaBasis(train, kmax, res, o.base.smoothness));
+    for (int k : o.components) {
+      if (k > kmax) continue;
+      PcaOptions po = o.base;
+      po.components = k;
+      po.grid_resolution = res;
+      RIG_ASSIGN_OR_RETURN(PcaModel m,
+                           FitPcaCoefficients(fit_part, TruncatePcaBasis(basis, k), po, all_eval));
+      double sum = 0;
+      for (int l : held) {
+        const cv::Mat pred = m.Render(s.directions[l]);
+        const float* pr = pred.ptr<float>();
+        for (size_t i = 0; i < eval.size(); ++i) {
+          for (int c = 0; c < 3; ++c) {
+            const float v = std::clamp(std::nearbyint(pr[i * 3 + (2 - c)] * 255.0f), 0.0f, 255.0f);
+            const double d = v - picked.value(i, l, c);
+            sum += d * d;
+          }
+        }
+      }
+      g.mse_by_k[k] = sum / static_cast<double>(held.size() * eval.size() * 3);
+    }
+    RIG_ASSIGN_OR_RETURN(g.full_basis, FitPcaBasis(comps, kmax, res, o.base.smoothness));
+    by_grid.push_back(std::move(g));
+  }
+
+  // 2. What JPEG adds and what it costs, from the planes of a central crop fitted with all
+  //    components: per plane, its compression error in coefficient units times the mean
+  //    square of its basis function over the lights; bytes scaled to the whole image.
+  std::vector<size_t> crop_pixels;
+  const LightSamples crop = Crop(s, 384, &crop_pixels);
+  PcaOptions po = o.base;
+  po.components = kmax;
+  std::vector<size_t> crop_index(crop_pixels.size());
+  for (size_t i = 0; i < crop_index.size(); ++i) crop_index[i] = i;
+  const PcaBasis& mid_basis = by_grid[by_grid.size() / 2].full_basis;
+  RIG_ASSIGN_OR_RETURN(PcaModel crop_model, FitPcaCoefficients(crop, mid_basis, po, crop_index));
+  const int files = (kmax + 2) / 3;
+  // bytes[q][j], err[q][p] (coefficient units², per pixel)
+  std::vector<std::vector<double>> file_bytes(o.qualities.size(), std::vector<double>(files, 0));
+  std::vector<std::vector<double>> plane_err(o.qualities.size(), std::vector<double>(kmax, 0));
+  const auto& planes = crop_model.planes();
+  for (size_t qi = 0; qi < o.qualities.size(); ++qi) {
+    for (int j = 0; j < files; ++j) {
+      cv::Mat rgb(crop.height, crop.width, CV_8UC3, cv::Scalar(0, 0, 0));
+      for (int c = 0; c < 3 && 3 * j + c < kmax; ++c) {
+        cv::Mat ch[3];
+        cv::split(rgb, ch);
+        planes[3 * j + c].reshape(1, crop.height).copyTo(ch[c]);
+        cv::merge(ch, 3, rgb);
+      }
+      RIG_ASSIGN_OR_RETURN(auto bytes, EncodeJpeg(rgb, JpegColor::kRgb, o.qualities[qi]));
+      file_bytes[qi][j] = static_cast<double>(bytes.size()) * pixels /
+                          static_cast<double>(crop_pixels.size());
+      RIG_ASSIGN_OR_RETURN(cv::Mat back, DecodeJpeg(bytes, "pca choice"));
+      for (int c = 0; c < 3 && 3 * j + c < kmax; ++c) {
+        const int p = 3 * j + c;
+        double e = 0;
+        for (int y = 0; y < rgb.rows; ++y) {
+          const uint8_t* a = rgb.ptr<uint8_t>(y);
+          const uint8_t* b = back.ptr<uint8_t>(y);
+          for (int x = 0; x < rgb.cols; ++x) {
+            const double d = static_cast<double>(a[x * 3 + c]) - b[x * 3 + c];
+            e += d * d;
+          }
+        }
+        const double scale = crop_model.quantisation()[p].scale();
+        plane_err[qi][p] = e / static_cast<double>(crop_pixels.size()) * scale * scale;
+      }
+    }
+  }
+  // Mean square of each component's basis over the sampled lights and colours.
+  std::vector<double> basis_power(kmax, 0);
+  {
+    std::vector<double> at(static_cast<size_t>(kmax + 1) * 3);
+    for (int l = 0; l < lights; ++l) {
+      mid_basis.Evaluate(s.directions[l], at.data());
+      for (int p = 0; p < kmax; ++p)
+        for (int c = 0; c < 3; ++c) basis_power[p] += at[(p + 1) * 3 + c] * at[(p + 1) * 3 + c];
+    }
+    for (auto& v : basis_power) v /= lights * 3.0;
+  }
+
+  // 3. Every candidate, and the choice.
+  const double fixed_json = 400 + lights * 3 * 7.0;  // keys, materials, the lights' 3 decimals
+  for (const auto& g : by_grid) {
+    for (int k : o.components) {
+      if (k > kmax) continue;
+      for (size_t qi = 0; qi < o.qualities.size(); ++qi) {
+        PcaCandidate c;
+        c.components = k;
+        c.resolution = g.res;
+        c.quality = o.qualities[qi];
+        c.validation_mse = g.mse_by_k[k];
+        for (int p = 0; p < k; ++p) c.jpeg_mse += plane_err[qi][p] * basis_power[p];
+        c.psnr_db = 10 * std::log10(255.0 * 255.0 / std::max(c.validation_mse + c.jpeg_mse, 1e-9));
+        double bytes = fixed_json + BasisJsonBytes(g.full_basis, k);
+        for (int j = 0; j < (k + 2) / 3; ++j) bytes += file_bytes[qi][j];
+        c.bytes_per_pixel = bytes / pixels;
+        c.within_budget = c.bytes_per_pixel <= o.max_bytes_per_pixel;
+        choice.candidates.push_back(c);
+      }
+    }
+  }
+  for (size_t i = 0; i < choice.candidates.size(); ++i) {
+    const auto& c = choice.candidates[i];
+    if (c.within_budget && (choice.best < 0 || c.psnr_db > choice.candidates[choice.best].psnr_db))
+      choice.best = static_cast<int>(i);
+  }
+  if (choice.best < 0) {
+    // Nothing fits the budget: the smallest candidate, said so.
+    for (size_t i = 0; i < choice.candidates.size(); ++i) {
+      if (choice.best < 0 ||
+          choice.candidates[i].bytes_per_pixel < choice.candidates[choice.best].bytes_per_pixel)
+        choice.best = static_cast<int>(i);
+    }
+    choice.chosen = choice.best;
+  } else {
+    const double floor_db = choice.candidates[choice.best].psnr_db - o.tolerance_db;
+    for (size_t i = 0; i < choice.candidates.size(); ++i) {
+      const auto& c = choice.candidates[i];
+      if (!c.within_budget || c.psnr_db < floor_db) continue;
+      if (choice.chosen < 0 ||
+          c.bytes_per_pixel < choice.candidates[choice.chosen].bytes_per_pixel)
+        choice.chosen = static_cast<int>(i);
+    }
+  }
+  const auto& ch = choice.candidates[choice.chosen];
+  const auto& best = choice.candidates[choice.best];
+  choice.options.components = ch.components;
+  choice.options.grid_resolution = ch.resolution;
+  choice.options.jpeg_quality = ch.quality;
+  choice.reason = fmt::format(
+      "{} components on a {}x{} grid at JPEG q{}: {:.2f} dB at held-out lights (every {}th "
+      "light of the fit held out), {:.2f} B/px — the smallest of {} candidates within {:.2f} dB "
+      "of the best under {:.2f} B/px ({} components, {}x{}, q{}: {:.2f} dB, {:.2f} B/px)",
+      ch.components, ch.resolution, ch.resolution, ch.quality, ch.psnr_db, o.validation_every,
+      ch.bytes_per_pixel, choice.candidates.size(), o.tolerance_db, o.max_bytes_per_pixel,
+      best.components, best.resolution, best.resolution, best.quality, best.psnr_db,
+      best.bytes_per_pixel);
+  if (!best.within_budget) {
+    choice.reason = fmt::format("no candidate fits {:.2f} B/px; the smallest: {}",
+                                o.max_bytes_per_pixel, choice.reason);
+  }
+  return choice;
+}
+
+int LargestCandidate(const PcaChoiceOptions& o) {
+  int kmax = 1;
+  for (int k : o.components) kmax = std::max(kmax, k);
+  return kmax;
+}
+
+Result<PcaAutoFit> FitPcaAuto(const LightSamples& samples, const PcaComponents* given,
+                              const PcaChoiceOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  PcaComponents own;
+  if (!given) {
+    RIG_ASSIGN_OR_RETURN(own, ComputePcaComponents(samples, o.base, LargestCandidate(o)));
+    given = &own;
+  }
+  PcaAutoFit out;
+  RIG_ASSIGN_OR_RETURN(out.choice, ChoosePca(samples, *given, o));
+  const PcaOptions& po = out.choice.options;
+  RIG_ASSIGN_OR_RETURN(PcaBasis basis,
+                       FitPcaBasis(*given, po.components, po.grid_resolution, po.smoothness));
+  RIG_ASSIGN_OR_RETURN(out.model,
+                       FitPcaCoefficients(samples, std::move(basis), po, given->subset, &out.stats));
+  out.stats.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+
+std::string PcaChoiceMarkdown(const PcaChoice& choice) {
+  std::string md =
+      "| components | grid | JPEG q | held-out PSNR (dB) | model MSE | JPEG MSE | B/px (est.) | |\n"
+      "|---|---|---|---|---|---|---|---|\n";
+  for (size_t i = 0; i < choice.candidates.size(); ++i) {
+    const auto& c = choice.candidates[i];
+    const char* mark = static_cast<int>(i) == choice.chosen ? "**chosen**"
+                       : static_cast<int>(i) == choice.best ? "best"
+                       : c.within_budget                    ? ""
+                                                            : "over budget";
+    md += fmt::format("| {} | {} | {} | {:.2f} | {:.2f} | {:.2f} | {:.2f} | {} |\n", c.components,
+                      c.resolution, c.quality, c.psnr_db, c.validation_mse, c.jpeg_mse,
+                      c.bytes_per_pixel, mark);
+  }
+  return md;
+}
+
+}  // namespace rig
