@@ -90,7 +90,8 @@ int main(int argc, char** argv) {
       RIG_ASSIGN_OR_RETURN(PcaAutoFit fit, FitPcaAuto(fold, &comps, co));
       const auto& c = fit.choice.candidates[fit.choice.chosen];
       chosen.push_back(fmt::format("{}/{}/q{}", c.components, c.resolution, c.quality));
-      RIG_TRY(fit.model.Save(tmp));
+      std::filesystem::remove_all(tmp);  // no planes of a larger fold's model left behind
+    RIG_TRY(fit.model.Save(tmp));
       RIG_ASSIGN_OR_RETURN(PcaModel back, PcaModel::Load(tmp));
       return FoldPrediction{back.Render(light), FolderBytes(tmp)};
     });
@@ -125,7 +126,8 @@ int main(int argc, char** argv) {
           auto score = LeaveOneOut(all, held, [&](const LightSamples& fold, int l, const Vec3& light)
                                                   -> Result<FoldPrediction> {
             RIG_ASSIGN_OR_RETURN(PcaModel m, FitPca(fold, o));
-            RIG_TRY(m.Save(tmp));
+            std::filesystem::remove_all(tmp);
+    RIG_TRY(m.Save(tmp));
             RIG_ASSIGN_OR_RETURN(PcaModel back, PcaModel::Load(tmp));
             return FoldPrediction{back.Render(light), FolderBytes(tmp)};
           });

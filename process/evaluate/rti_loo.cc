@@ -46,6 +46,7 @@ Result<RtiLooRow> PcaRow(const RtiCapture& cap, const PcaChoiceOptions& co,
                                                    const Vec3& light) -> Result<FoldPrediction> {
     const PcaComponents comps = PcaComponentsWithout(full, {held}, kmax);
     RIG_ASSIGN_OR_RETURN(PcaAutoFit fit, FitPcaAuto(fold, &comps, co));
+    std::filesystem::remove_all(tmp);  // no planes of a larger fold's model left behind
     RIG_TRY(fit.model.Save(tmp));
     RIG_ASSIGN_OR_RETURN(PcaModel back, PcaModel::Load(tmp));
     return FoldPrediction{back.Render(light), FolderBytes(tmp)};
@@ -71,6 +72,7 @@ Result<RtiLooRow> NeuralRow(const RtiCapture& cap, const std::vector<int>& folds
   auto score = LeaveOneOut(cap.samples, folds, [&](const LightSamples& fold, int,
                                                    const Vec3& light) -> Result<FoldPrediction> {
     RIG_ASSIGN_OR_RETURN(NeuralModel m, FitNeural(fold, no));
+    std::filesystem::remove_all(tmp);
     RIG_TRY(m.Save(tmp));
     RIG_ASSIGN_OR_RETURN(NeuralModel back, NeuralModel::Load(tmp));
     return FoldPrediction{back.Render(light), NeuralModel::BytesOnDisk(tmp)};

@@ -1,0 +1,166 @@
+// `rig fit --lp` as a user runs it: on a small synthetic multi-light capture written as JPEGs
+// with an .lp file, the default writes relight's web format and says what it chose; the model
+// renders; bad light files and bad images are refused naming the .lp line; on the shared real
+// capture (when present) the default fits in the byte budget.
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "process/model/fit.h"
+#include "tests/support/run_rig.h"
+
+namespace rig {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+using testing::RunRig;
+
+// 36 lights on rings at 25..70°, a textured matte plane with bumps and a glossy stripe.
+std::string WriteCapture(const std::string& dir, int width, int height) {
+  std::ofstream lp(dir + "/dirs.lp");
+  lp << "# a synthetic capture\n36\n";
+  int index = 0;
+  for (double elev : {25.0, 40.0, 55.0, 70.0}) {
+    for (int i = 0; i < 9; ++i, ++index) {
+      const double az = (i + 0.3 * index) * 2 * M_PI / 9, e = elev * M_PI / 180;
+      const double l[3] = {std::cos(e) * std::cos(az), std::cos(e) * std::sin(az), std::sin(e)};
+      cv::Mat img(height, width, CV_8UC3);
+      for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+          const double u = x / double(width) - 0.5, v = y / double(height) - 0.5;
+          double n[3] = {0.4 * std::sin(9 * u), 0.3 * std::cos(7 * v), 1};
+          const double nn = std::sqrt(n[0] * n[0] + n[1] * n[1] + 1);
+          for (auto& q : n) q /= nn;
+          const double ndl = std::max(0.0, n[0] * l[0] + n[1] * l[1] + n[2] * l[2]);
+          const double rz = 2 * ndl * n[2] - l[2];
+          const double spec = (y / 10) % 3 == 0 ? 0.5 * std::pow(std::max(0.0, rz), 15) : 0;
+          for (int c = 0; c < 3; ++c) {
+            const double albedo = (0.3 + 0.3 * ((x / 6) % 2)) * (1.0 - 0.2 * c);
+            img.at<cv::Vec3b>(y, x)[c] = static_cast<uint8_t>(std::clamp(
+                255.0 * SrgbEncode(static_cast<float>(albedo * ndl + spec)), 0.0, 255.0));
+          }
+        }
+      const std::string name = "img" + std::to_string(index) + ".jpg";
+      cv::imwrite(dir + "/" + name, img, {cv::IMWRITE_JPEG_QUALITY, 95});
+      lp << name << " " << l[0] << " " << l[1] << " " << l[2] << "\n";
+    }
+  }
+  return dir + "/dirs.lp";
+}
+
+TEST(FitLpCommand, DefaultWritesRelightsWebFormatSaysWhatItChoseAndRenders) {
+  const std::string dir = testing::FreshTempDir("fit-lp");
+  const std::string lp = WriteCapture(dir, 80, 64);
+  // A tiny image: the basis (a fixed cost) is large per pixel; a budget that leaves the
+  // choice to the error.
+  auto r = RunRig("fit --lp " + lp + " --max-bytes-per-pixel 40 --out " + dir + "/model --report " +
+                  dir + "/report.md");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("pca-bilinear"));
+  EXPECT_THAT(r.output, HasSubstr("the smallest of"));
+  EXPECT_TRUE(fs::exists(dir + "/model/info.json"));
+  EXPECT_TRUE(fs::exists(dir + "/model/plane_0.jpg"));
+  std::ifstream rep(dir + "/report.md");
+  const std::string report((std::istreambuf_iterator<char>(rep)), {});
+  EXPECT_THAT(report, HasSubstr("**chosen**"));
+  EXPECT_THAT(report, HasSubstr("masked"));
+
+  // It renders (as the photographs: no tone mapping), close to a photograph at its own light.
+  // The first image's light: elevation 25°, azimuth 0.
+  const double e = 25 * M_PI / 180;
+  const double h = std::atan2(std::cos(e), std::sin(e)) * 180 / M_PI;
+  const double v = std::asin(0.0) * 180 / M_PI;
+  r = RunRig("render " + dir + "/model --light " + std::to_string(h) + "," + std::to_string(v) +
+             " --out " + dir + "/relit.png");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("as the photographs"));
+  const cv::Mat relit = cv::imread(dir + "/relit.png"), photo = cv::imread(dir + "/img0.jpg");
+  ASSERT_EQ(relit.size(), photo.size());
+  cv::Mat diff;
+  cv::absdiff(relit, photo, diff);
+  EXPECT_LT(cv::mean(diff)[0], 6.0);
+
+  // An EXR name for a folder model is refused with the reason; sh still writes an EXR.
+  r = RunRig("fit --lp " + lp + " --out " + dir + "/m.exr");
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("is a folder"));
+  r = RunRig("fit --lp " + lp + " --basis hsh --order 2 --out " + dir + "/m.exr");
+  EXPECT_EQ(r.status, 0) << r.output;
+  EXPECT_TRUE(fs::exists(dir + "/m.exr"));
+  fs::remove_all(dir);
+}
+
+TEST(FitLpCommand, BadLightFilesAndImagesAreRefusedNamingTheLine) {
+  const std::string dir = testing::FreshTempDir("fit-lp-bad");
+  const std::string lp = WriteCapture(dir, 24, 16);
+  std::ifstream in(lp);
+  std::vector<std::string> lines;
+  for (std::string l; std::getline(in, l);) lines.push_back(l);
+  auto write = [&](const std::string& name, std::vector<std::string> l) {
+    std::ofstream f(dir + "/" + name);
+    for (const auto& s : l) f << s << "\n";
+    return dir + "/" + name;
+  };
+  auto lines2 = lines;
+  lines2[1] = "36.5";
+  auto r = RunRig("fit --lp " + write("count.lp", lines2) + " --out " + dir + "/m");
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("count.lp:2"));
+  EXPECT_THAT(r.output, HasSubstr("whole number"));
+
+  lines2 = lines;
+  lines2[5] = "missing.jpg 0.1 0.2 0.97";
+  r = RunRig("fit --lp " + write("missing.lp", lines2) + " --out " + dir + "/m");
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("missing.lp:6"));
+  EXPECT_THAT(r.output, HasSubstr("missing.jpg"));
+
+  // A truncated JPEG is refused, not read as grey.
+  {
+    std::ifstream src(dir + "/img3.jpg", std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(src)), {});
+    std::ofstream(dir + "/cut.jpg", std::ios::binary) << bytes.substr(0, bytes.size() - 60);
+  }
+  lines2 = lines;
+  lines2[5] = "cut.jpg" + lines[5].substr(lines[5].find(' '));
+  r = RunRig("fit --lp " + write("cut.lp", lines2) + " --out " + dir + "/m");
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("cut.lp:6"));
+  EXPECT_THAT(r.output, HasSubstr("truncated"));
+
+  // A light below the horizon: refused by the hemispherical default, naming the line.
+  lines2 = lines;
+  lines2[7] = lines[7].substr(0, lines[7].find(' ')) + " 0.6 0.0 -0.8";
+  r = RunRig("fit --lp " + write("below.lp", lines2) + " --out " + dir + "/m");
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("below.lp:8"));
+  EXPECT_THAT(r.output, HasSubstr("below the horizon"));
+
+  // Too few lines for the count.
+  lines2 = lines;
+  lines2.pop_back();
+  r = RunRig("fit --lp " + write("short.lp", lines2) + " --out " + dir + "/m");
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("36 images, 35 are listed"));
+  fs::remove_all(dir);
+}
+
+TEST(FitLpCommand, RealCaptureDefaultFitsWithinTheByteBudget) {
+  const std::string lp = testing::SharedDir() + "/data/rti/neuralrti-example/dirs.lp";
+  if (!fs::exists(lp)) GTEST_SKIP() << lp << " is not here";
+  const std::string dir = testing::FreshTempDir("fit-icon");
+  auto r = RunRig("fit --lp " + lp + " --out " + dir + "/icon");
+  ASSERT_EQ(r.status, 0) << r.output;
+  uint64_t bytes = 0;
+  for (const auto& e : fs::directory_iterator(dir + "/icon")) bytes += e.file_size();
+  EXPECT_LE(static_cast<double>(bytes) / (402.0 * 395.0), 3.4) << r.output;
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace rig
