@@ -122,6 +122,7 @@ NeuralOptions TestOptions() {
   o.learning_rate = 3e-3;
   o.encoder_hidden = 64;
   o.finetune_epochs = 2;
+  o.code_format = NeuralCodeFormat::kPng;
   return o;
 }
 
