@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
@@ -82,6 +83,7 @@ Result<RtiLooRow> NeuralRow(const RtiCapture& cap, const std::vector<int>& folds
   RIG_ASSIGN_OR_RETURN(NeuralModel m, FitNeural(cap.samples, no));
   RtiLooRow row;
   row.family = "neural";
+  row.label = "rig neural (9 codes)";
   row.setting = fmt::format("{} codes, decoder {}x{}, {} epochs", no.latent, no.decoder_layers,
                             no.hidden, no.epochs);
   row.protocol = Protocol(static_cast<int>(folds.size()), cap.samples.lights());
@@ -139,6 +141,7 @@ Result<std::vector<RtiLooRow>> HarmonicRows(const RtiCapture& cap, const std::st
     row.bytes_per_pixel = static_cast<double>(ModelBytesOnDisk(path)) /
                           static_cast<double>(s.pixels());
     row.fit_time_s = fit_s;
+    row.label = fmt::format("rig {} {} terms", r.basis, r.terms);
     fs::remove(path);
     rows.push_back(row);
   }
@@ -159,6 +162,7 @@ std::vector<RtiLooRow> RelightPublishedIconRows() {
     r.bytes_per_pixel = bpp;
     r.fit_time_s = seconds;
     r.published = true;
+    r.label = r.family + " (published)";
     return r;
   };
   // ../shared/docs/rti-formats.md and the issue: relight-cli 2026.03, -I srgb; fit times of
@@ -194,6 +198,7 @@ Result<std::vector<RtiLooRow>> RtiLooTable(const RtiCapture& cap, const RtiLooOp
                                                          o.choice.max_bytes_per_pixel),
                                              tmp));
     r.is_default = true;
+    r.label = fmt::format("rig default (pca, <= {:.1f} B/px)", o.choice.max_bytes_per_pixel);
     add(r);
   }
   {
@@ -203,6 +208,7 @@ Result<std::vector<RtiLooRow>> RtiLooTable(const RtiCapture& cap, const RtiLooOp
     RIG_ASSIGN_OR_RETURN(RtiLooRow r,
                          PcaRow(cap, big, folds,
                                 fmt::format("auto within {:.0f} B/px", o.large_budget), tmp));
+    r.label = fmt::format("rig pca, <= {:.0f} B/px", o.large_budget);
     add(r);
   }
   {
@@ -213,6 +219,7 @@ Result<std::vector<RtiLooRow>> RtiLooTable(const RtiCapture& cap, const RtiLooOp
     fixed.qualities = {95};
     fixed.max_bytes_per_pixel = 1e9;
     RIG_ASSIGN_OR_RETURN(RtiLooRow r, PcaRow(cap, fixed, folds, "k 9, 8x8 grid, q95 (relight's sizes)", tmp));
+    r.label = "rig pca at relight's sizes (9, 8x8)";
     add(r);
   }
   if (o.harmonic) {
@@ -252,7 +259,7 @@ Status WriteRtiLooCharts(const std::vector<RtiLooRow>& rows, const std::string& 
     std::vector<PlotMarker> markers;
     for (const auto& r : rows) {
       PlotSeries s;
-      s.label = (r.published ? "" : "rig ") + r.family + ": " + r.setting;
+      s.label = r.label.empty() ? r.family : r.label;
       s.x = {chart == 0 ? r.bytes_per_pixel : r.fit_time_s};
       s.y = {r.psnr_mean_mse_db};
       s.line = false;
@@ -263,6 +270,7 @@ Status WriteRtiLooCharts(const std::vector<RtiLooRow>& rows, const std::string& 
         markers.push_back({s.x[0], s.y[0], PlotMarker::Style::kSquare, {90, 90, 90}, ""});
     }
     PlotOptions po;
+    po.width = 1100;
     po.title = chart == 0 ? "Leave-one-out PSNR against model size"
                           : "Leave-one-out PSNR against fit time";
     po.x_label = chart == 0 ? "bytes per pixel on disk" : "fit time on all images (s)";
@@ -274,6 +282,24 @@ Status WriteRtiLooCharts(const std::vector<RtiLooRow>& rows, const std::string& 
     if (!cv::imwrite(path, img)) return MakeError(ErrorCode::kIo, path, "cannot write the chart");
   }
   return Ok();
+}
+
+Result<std::vector<RtiLooRow>> WriteRtiLooReport(
+    const RtiCapture& capture, const RtiLooOptions& options, const std::string& markdown_path,
+    const std::function<void(const RtiLooRow&)>& on_row) {
+  RIG_ASSIGN_OR_RETURN(auto rows, RtiLooTable(capture, options, on_row));
+  // relight-cli's published figures belong to the shared icon only.
+  if (capture.samples.lights() == 72 && capture.samples.width == 402 &&
+      capture.samples.height == 395) {
+    for (auto& r : RelightPublishedIconRows()) rows.push_back(r);
+  }
+  std::ofstream f(markdown_path);
+  f << RtiLooMarkdown(capture, rows);
+  f.flush();
+  if (!f) return MakeError(ErrorCode::kIo, markdown_path, "cannot write");
+  const fs::path p(markdown_path);
+  RIG_TRY(WriteRtiLooCharts(rows, (p.parent_path() / p.stem()).string()));
+  return rows;
 }
 
 }  // namespace rig

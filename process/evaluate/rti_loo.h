@@ -27,6 +27,7 @@ struct RtiLooRow {
   std::string family;     // "pca-bilinear", "ptm", "neural", ...
   std::string setting;    // what was fitted: "auto within 3.4 B/px", "k 9, 32x32, q85"
   std::string protocol;   // "all 72 refitted", "every 6th refitted", "exact (hat matrix)"
+  std::string label;      // short, for charts
   double psnr_mean_mse_db = 0, psnr_median_db = 0;
   double bytes_per_pixel = 0;
   double fit_time_s = 0;  // one fit on all images
@@ -45,5 +46,12 @@ std::string RtiLooMarkdown(const RtiCapture& capture, const std::vector<RtiLooRo
 
 // Two PNG charts: <prefix>-psnr-bytes.png and <prefix>-psnr-time.png.
 Status WriteRtiLooCharts(const std::vector<RtiLooRow>& rows, const std::string& prefix);
+
+// The whole report: the table (with relight's published rows when the capture is the shared
+// icon: 72 images of 402x395), written to `markdown_path`, and the two charts beside it
+// (<path without .md>-psnr-bytes.png, -psnr-time.png). Returns the rows.
+Result<std::vector<RtiLooRow>> WriteRtiLooReport(
+    const RtiCapture& capture, const RtiLooOptions& options, const std::string& markdown_path,
+    const std::function<void(const RtiLooRow&)>& on_row = nullptr);
 
 }  // namespace rig

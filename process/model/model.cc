@@ -324,8 +324,11 @@ Result<FitOutput> FitModel(const FitInput& in, const FitOptions& o) {
 std::string FitReportMarkdown(const FitOutput& out, const FitOptions& o) {
   std::string s = fmt::format(
       "# Reflectance fit\n\nbasis {}, method {}, fit space {}, order {} ({}), tolerance {:.3g}\n\n"
-      "| order | terms | LOO RMSE (fit space) | condition of B | solved condition | lambda (rel.) "
-      "| build time (s) | note |\n|---|---|---|---|---|---|---|---|\n",
+      "The leave-one-out column is the one the order (and λ) were chosen by: a preview, "
+      "optimistic for the order it chose. An honest figure refits without each image with "
+      "every choice inside the fold (`rig fit --lp ... --loo-report`).\n\n"
+      "| order | terms | LOO RMSE (fit space, selection preview) | condition of B | solved condition "
+      "| lambda (rel.) | build time (s) | note |\n|---|---|---|---|---|---|---|---|\n",
       BasisKindName(o.basis), FitMethodName(o.method), FitSpaceName(o.transform.space),
       out.selection.order, o.order >= 0 ? "requested" : "chosen: smallest within tolerance",
       o.order_tolerance);

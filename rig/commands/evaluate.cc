@@ -5,6 +5,10 @@
 // sim/evaluation.h; this file parses the options and prints.
 #include <cstdio>
 
+#include <filesystem>
+
+#include "process/evaluate/rti_loo.h"
+#include "process/model/rti_fit.h"
 #include "rig/commands/command.h"
 #include "sim/evaluation.h"
 
@@ -26,10 +30,41 @@ int RunEvaluate(int argc, char** argv) {
   app.add_option("--height", request.height, "simulated image height (default 120)")->check(CLI::Range(16, 4096));
   app.add_option("--hdr-images", hdr_dir, "folder of real HDR images (.exr, .hdr) used as HDR truth");
   app.add_flag("--quick", request.quick, "fewer scenes and HDR trials (for tests)");
+  std::string lp;
+  int lp_every = 1;
+  app.add_option("--lp", lp, "a multi-light capture (.lp): every model family by leave-one-out "
+                             "(refitting without each image), PSNR against bytes and fit time");
+  app.add_option("--lp-every", lp_every, "with --lp: hold out every n-th image only")
+      ->check(CLI::Range(1, 1000));
   app.add_option("--out", out_dir, "report folder (created; refused if it holds a report)")->required();
   AddLogLevelOption(app, &level);
   if (auto rc = ParseCommandLine(app, argc, argv)) return *rc;
   if (auto rc = ApplyLogLevel(level)) return *rc;
+  if (!lp.empty()) {
+    if (request.dry_run || !session_dir.empty()) {
+      return ReportError("evaluate", MakeError(ErrorCode::kInvalidInput, "--lp",
+                                               "give --lp alone (not with SESSION or --dry-run)"));
+    }
+    const std::string md = (std::filesystem::path(out_dir) / "rti-loo.md").string();
+    if (std::filesystem::exists(md)) {
+      return ReportError("evaluate", MakeError(ErrorCode::kInvalidInput, md,
+                                               "exists; choose another --out (nothing is overwritten)"));
+    }
+    std::filesystem::create_directories(out_dir);
+    auto capture = LoadRtiCapture(lp);
+    if (!capture.ok()) return ReportError("evaluate", capture.error());
+    RtiLooOptions lo;
+    lo.every = lp_every;
+    auto rows = WriteRtiLooReport(*capture, lo, md, [](const RtiLooRow& r) {
+      std::printf("  %-14s %-40s %6.2f / %6.2f dB  %6.2f B/px  %6.2f s\n", r.family.c_str(),
+                  r.setting.c_str(), r.psnr_mean_mse_db, r.psnr_median_db, r.bytes_per_pixel,
+                  r.fit_time_s);
+      std::fflush(stdout);
+    });
+    if (!rows.ok()) return ReportError("evaluate", rows.error());
+    std::printf("report: %s\n", md.c_str());
+    return 0;
+  }
   if (request.dry_run == !session_dir.empty()) {
     return ReportError("evaluate", MakeError(ErrorCode::kInvalidInput, "SESSION",
                                              "give a SESSION or --dry-run (not both)"));

@@ -182,6 +182,11 @@ int RunRender(int argc, char** argv) {
 
   auto request = RequestFromArgs(a);
   if (!request.ok()) return ReportError("render", request.error());
+  // Refused before any rendering, as WriteRender would after it: nothing is overwritten.
+  if (!request->sweep.empty() && std::filesystem::exists(SweepFrameDir(a.out))) {
+    return ReportError("render", MakeError(ErrorCode::kInvalidInput, SweepFrameDir(a.out),
+                                           "exists; choose another --out (nothing is overwritten)"));
+  }
   auto source = ResolveRenderSource(a.source, a.response_option);
   if (!source.ok()) return ReportError("render", source.error());
   auto model = LoadReflectanceModel(source->model_path);
