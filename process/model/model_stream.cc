@@ -157,6 +157,8 @@ Result<StreamFitOutput> FitModelStreaming(const StreamFitInput& in, const FitOpt
       count += c;
     }
     StreamFitOutput out;
+    out.width = w;
+    out.height = h;
     RIG_ASSIGN_OR_RETURN(out.selection, SelectProjector(in.directions, weights, gram, count, o));
     const Projector& pr = out.selection.projector;
     for (const auto& r : out.selection.orders)

@@ -29,6 +29,7 @@ struct StreamFitOutput {
   MissingStats missing;
   double loo_rmse = 0;
   double time_s = 0;
+  int width = 0, height = 0;  // of the maps and the model
 };
 
 // Bytes the in-memory fit would hold for the samples (width x height x 3 x 4 x maps), from

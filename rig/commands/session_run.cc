@@ -103,14 +103,18 @@ Status FitSessionModel(const Session& session) {
   fs::create_directories(layout.model(), ec);
   fs::path out = layout.model() / "model.exr";
   RIG_ASSIGN_OR_RETURN(StreamFitOutput fit, FitModelStreaming(in, options, out.string(), type));
-  // What each order costs and gives, beside the model.
+  // What each order costs and gives, beside the model, and its size on disk.
+  const auto model_bytes = fs::file_size(out, ec);
+  const double pixels = static_cast<double>(fit.width) * static_cast<double>(fit.height);
+  const double bpp = ec || pixels <= 0 ? 0.0 : static_cast<double>(model_bytes) / pixels;
   std::string md = fmt::format(
       "# Reflectance model of {}\n\nbasis {}, method {}, fit space {}; chosen order {} "
-      "({} terms); LOO RMS error {:.5g}; fitted in {:.2f} s\n\n"
+      "({} terms); leave-one-out RMS error {:.5g} (in the fit space, the selection's own "
+      "estimate); {:.1f} bytes per pixel on disk; fitted in {:.2f} s\n\n"
       "| order | terms | supported | LOO RMS error | condition | λ (relative) |\n"
       "|---|---|---|---|---|---|\n",
       layout.root.string(), config.process.basis, config.process.fit_method, config.process.fit_space,
-      fit.selection.order, fit.selection.projector.basis.size(), fit.loo_rmse, fit.time_s);
+      fit.selection.order, fit.selection.projector.basis.size(), fit.loo_rmse, bpp, fit.time_s);
   for (const auto& o : fit.selection.orders) {
     md += o.supported ? fmt::format("| {} | {} | yes | {:.5g} | {:.3g} | {:.3g} |\n", o.order, o.terms,
                                     o.loo_rmse, o.condition, o.lambda_relative)
@@ -122,8 +126,10 @@ Status FitSessionModel(const Session& session) {
   if (!st.ok()) log->warn("{}", st.error().ToString());
   log->info("model written file={} order={} terms={} loo_rmse={:.5g} time_s={:.2f}", out.string(),
             fit.selection.order, fit.selection.projector.basis.size(), fit.loo_rmse, fit.time_s);
-  std::printf("model: %s (order %d, %d terms, LOO RMS error %.4g, %.2f s)\n", out.string().c_str(),
-              fit.selection.order, fit.selection.projector.basis.size(), fit.loo_rmse, fit.time_s);
+  std::printf("model: %s (order %d, %d terms, %.1f B/px; leave-one-out RMS error %.4g in %s "
+              "space; %.2f s)\n",
+              out.string().c_str(), fit.selection.order, fit.selection.projector.basis.size(), bpp,
+              fit.loo_rmse, config.process.fit_space.c_str(), fit.time_s);
   return Ok();
 }
 
