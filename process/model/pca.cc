@@ -168,6 +168,8 @@ GridFit FitGrid(const Eigen::MatrixXd& w, const Eigen::MatrixXd& f, const Eigen:
   return best;
 }
 
+}  // namespace
+
 // Deterministic sample of pixel indices: one per stride, at a seeded offset within it.
 std::vector<size_t> SamplePixels(size_t pixels, size_t wanted, uint64_t seed) {
   std::vector<size_t> out;
@@ -186,6 +188,8 @@ std::vector<size_t> SamplePixels(size_t pixels, size_t wanted, uint64_t seed) {
   }
   return out;
 }
+
+namespace {
 
 void ParallelFor(size_t n, int threads, const std::function<void(size_t, size_t)>& body) {
   threads = std::max(1, std::min<int>(threads, static_cast<int>((n + 4095) / 4096)));
@@ -258,22 +262,21 @@ void PcaBasis::Evaluate(const Vec3& direction, double* out) const {
   }
 }
 
-Result<PcaComponents> ComputePcaComponents(const LightSamples& samples, const PcaOptions& o,
-                                           int count) {
-  const int lights = samples.lights();
-  const size_t pixels = samples.pixels();
-  const int dim = lights * 3;
-  if (lights < 4 || pixels == 0 || samples.values.size() != pixels * dim) {
-    return MakeError(ErrorCode::kInvalidInput, "pca", "{} lights and {} pixels: nothing to fit",
-                     lights, pixels);
-  }
+namespace {
+
+// The components from the samples of the subset's pixels: row(i, subset[i]) points at the
+// i-th sampled pixel's samples.
+PcaComponents ComponentsOfRows(const std::vector<Vec3>& lights, std::vector<size_t> subset,
+                               const std::function<const uint8_t*(size_t, size_t)>& row,
+                               int count) {
+  const int dim = static_cast<int>(lights.size()) * 3;
   PcaComponents pc;
-  pc.lights = samples.directions;
-  pc.subset = SamplePixels(pixels, o.basis_pixels, o.seed);
+  pc.lights = lights;
+  pc.subset = std::move(subset);
   const Eigen::Index m = static_cast<Eigen::Index>(pc.subset.size());
   Eigen::MatrixXf xs(m, dim);
   for (Eigen::Index i = 0; i < m; ++i) {
-    const uint8_t* v = samples.values.data() + pc.subset[static_cast<size_t>(i)] * dim;
+    const uint8_t* v = row(static_cast<size_t>(i), pc.subset[static_cast<size_t>(i)]);
     for (int d = 0; d < dim; ++d) xs(i, d) = v[d];
   }
   pc.mean = xs.cast<double>().colwise().mean().transpose();
@@ -284,6 +287,36 @@ Result<PcaComponents> ComputePcaComponents(const LightSamples& samples, const Pc
   pc.covariance = gram.cast<double>() / static_cast<double>(std::max<Eigen::Index>(m - 1, 1));
   Decompose(&pc, count);
   return pc;
+}
+
+}  // namespace
+
+Result<PcaComponents> ComputePcaComponents(const LightSamples& samples, const PcaOptions& o,
+                                           int count) {
+  const int lights = samples.lights();
+  const size_t pixels = samples.pixels();
+  const int dim = lights * 3;
+  if (lights < 4 || pixels == 0 || samples.values.size() != pixels * dim) {
+    return MakeError(ErrorCode::kInvalidInput, "pca", "{} lights and {} pixels: nothing to fit",
+                     lights, pixels);
+  }
+  return ComponentsOfRows(
+      samples.directions, SamplePixels(pixels, o.basis_pixels, o.seed),
+      [&](size_t, size_t pixel) { return samples.values.data() + pixel * dim; }, count);
+}
+
+Result<PcaComponents> ComputePcaComponentsOfSample(const LightSamples& sampled,
+                                                   std::vector<size_t> subset, int count) {
+  const int lights = sampled.lights();
+  const size_t dim = static_cast<size_t>(lights) * 3;
+  if (lights < 4 || subset.empty() || sampled.pixels() != subset.size() ||
+      sampled.values.size() != subset.size() * dim) {
+    return MakeError(ErrorCode::kInvalidInput, "pca", "{} lights and {} sampled pixels: nothing to fit",
+                     lights, subset.size());
+  }
+  return ComponentsOfRows(
+      sampled.directions, std::move(subset),
+      [&](size_t i, size_t) { return sampled.values.data() + i * dim; }, count);
 }
 
 PcaComponents PcaComponentsWithout(const PcaComponents& full, const std::vector<int>& dropped,
@@ -401,13 +434,123 @@ Result<PcaBasis> FitPcaBasis(const PcaComponents& pc, int k, int res, double smo
   return b;
 }
 
+PcaCoefficientSolver::PcaCoefficientSolver(const PcaBasis& b, const std::vector<Vec3>& directions,
+                                           const PcaOptions& o)
+    : dim_(static_cast<int>(directions.size()) * 3),
+      k_(b.components),
+      mode_(o.mask),
+      thresholds_(o.thresholds) {
+  const int lights = static_cast<int>(directions.size());
+  // 4. The design at the sampled lights through the stored basis, and its projector.
+  a_.resize(dim_, k_);
+  Eigen::VectorXd mu(dim_);
+  {
+    std::vector<double> at(static_cast<size_t>(k_ + 1) * 3);
+    for (int l = 0; l < lights; ++l) {
+      b.Evaluate(directions[l], at.data());
+      for (int c = 0; c < 3; ++c) {
+        mu(l * 3 + c) = at[c];
+        for (int p = 0; p < k_; ++p) a_(l * 3 + c, p) = at[(p + 1) * 3 + c];
+      }
+    }
+  }
+  ata_ = a_.transpose() * a_;
+  const Eigen::LDLT<Eigen::MatrixXd> ata_ldlt(ata_);
+  proj_ = ata_ldlt.solve(a_.transpose()).cast<float>();  // k × dim
+  muf_ = mu.cast<float>();
+  af_ = a_.cast<float>();
+}
+
+// Coefficients of a block of pixels, masked samples fitted around.
+void PcaCoefficientSolver::Solve(const uint8_t* values, size_t count, Eigen::MatrixXf* out,
+                                 size_t* n_masked, size_t* n_refit) const {
+  const int dim = dim_, k = k_;
+  const Eigen::MatrixXd& a = a_;
+  const Eigen::MatrixXf& proj = proj_;
+  const Eigen::VectorXf& muf = muf_;
+  const Eigen::MatrixXf& af = af_;
+  const bool masked = mode_ != PcaMaskMode::kNone;
+  const int black = thresholds_.black_max, clipped = thresholds_.clipped_min;
+  Eigen::MatrixXf y(dim, static_cast<Eigen::Index>(count));
+  for (size_t i = 0; i < count; ++i) {
+    const uint8_t* v = values + i * dim;
+    for (int d = 0; d < dim; ++d) y(d, static_cast<Eigen::Index>(i)) = v[d] - muf(d);
+  }
+  *out = proj * y;  // k × count
+  if (!masked) return;
+  size_t local_masked = 0, local_refit = 0;
+  std::vector<int> drop;
+  Eigen::VectorXf pred(dim);
+  for (size_t i = 0; i < count; ++i) {
+    const uint8_t* v = values + i * dim;
+    drop.clear();
+    bool any = false;
+    for (int d = 0; d < dim; ++d) {
+      if (v[d] > black && v[d] < clipped) continue;
+      if (!any && mode_ == PcaMaskMode::kHinge) pred.noalias() = af * out->col(static_cast<Eigen::Index>(i));
+      any = true;
+      ++local_masked;
+      // Hinge: a clipped sample is left out where the fit already reaches it, a black one
+      // where the fit is already below it; elsewhere it pulls the fit towards its value.
+      const float p = muf(d) + (mode_ == PcaMaskMode::kHinge ? pred(d) : 0.0f);
+      if (mode_ == PcaMaskMode::kDrop || (v[d] >= clipped && p >= v[d]) ||
+          (v[d] <= black && p <= v[d]))
+        drop.push_back(d);
+    }
+    if (!any || drop.empty() || static_cast<int>(drop.size()) > dim - 2 * k) continue;
+    Eigen::MatrixXd g = ata_;
+    Eigen::VectorXd rhs = a.transpose() * y.col(static_cast<Eigen::Index>(i)).cast<double>();
+    for (int d : drop) {
+      g.noalias() -= a.row(d).transpose() * a.row(d);
+      rhs.noalias() -= a.row(d).transpose() * static_cast<double>(y(d, static_cast<Eigen::Index>(i)));
+    }
+    const Eigen::LLT<Eigen::MatrixXd> llt(g);
+    // Too few samples left to hold every component: keep the unmasked solution.
+    if (llt.info() != Eigen::Success) continue;
+    const auto diag = llt.matrixLLT().diagonal();
+    if (!(diag.minCoeff() > 1e-4 * diag.maxCoeff())) continue;
+    out->col(static_cast<Eigen::Index>(i)) = llt.solve(rhs).cast<float>();
+    ++local_refit;
+  }
+  *n_masked += local_masked;
+  *n_refit += local_refit;
+}
+
+std::vector<std::pair<size_t, size_t>> PcaCoefficientBlocks(size_t pixels, int threads) {
+  // ParallelFor's chunks, each cut into blocks of 2048 from its start.
+  const size_t block = 2048;
+  std::vector<std::pair<size_t, size_t>> out;
+  threads = std::max(1, std::min<int>(threads, static_cast<int>((pixels + 4095) / 4096)));
+  const size_t chunk = threads == 1 ? pixels : (pixels + threads - 1) / threads;
+  for (int t = 0; t < threads; ++t) {
+    const size_t lo = t * chunk, hi = std::min(pixels, lo + chunk);
+    for (size_t start = lo; start < hi; start += block)
+      out.emplace_back(start, std::min(block, hi - start));
+  }
+  return out;
+}
+
+std::vector<PlaneQuantisation> PcaQuantisation(const Eigen::MatrixXf& sampled, double quantile) {
+  return Ranges(sampled, quantile);
+}
+
+void QuantisePcaPlane(const Eigen::MatrixXf& coeffs, int p, const PlaneQuantisation& q,
+                      uint8_t* dst) {
+  const float inv = static_cast<float>(255.0 / (q.max - q.min));
+  const float lo_v = static_cast<float>(q.min);
+  const Eigen::Index n = coeffs.cols();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const float v = std::nearbyint((coeffs(p, i) - lo_v) * inv);
+    dst[i] = static_cast<uint8_t>(std::clamp(v, 0.0f, 255.0f));
+  }
+}
+
 Result<PcaModel> FitPcaCoefficients(const LightSamples& samples, PcaBasis basis,
                                     const PcaOptions& o, const std::vector<size_t>& subset,
                                     PcaFitStats* stats) {
   const auto t0 = Clock::now();
-  const int lights = samples.lights();
   const size_t pixels = samples.pixels();
-  const int dim = lights * 3;
+  const size_t dim = static_cast<size_t>(samples.lights()) * 3;
   const int k = basis.components;
   PcaModel model;
   model.width_ = samples.width;
@@ -415,89 +558,23 @@ Result<PcaModel> FitPcaCoefficients(const LightSamples& samples, PcaBasis basis,
   model.jpeg_quality_ = o.jpeg_quality;
   model.lights_ = samples.directions;
   model.basis_ = std::move(basis);
-  const PcaBasis& b = model.basis_;
-  // 4. The design at the sampled lights through the stored basis, and its projector.
-  Eigen::MatrixXd a(dim, k);
-  Eigen::VectorXd mu(dim);
-  {
-    std::vector<double> at(static_cast<size_t>(k + 1) * 3);
-    for (int l = 0; l < lights; ++l) {
-      b.Evaluate(samples.directions[l], at.data());
-      for (int c = 0; c < 3; ++c) {
-        mu(l * 3 + c) = at[c];
-        for (int p = 0; p < k; ++p) a(l * 3 + c, p) = at[(p + 1) * 3 + c];
-      }
-    }
-  }
-  const Eigen::MatrixXd ata = a.transpose() * a;
-  const Eigen::LDLT<Eigen::MatrixXd> ata_ldlt(ata);
-  const Eigen::MatrixXf proj = ata_ldlt.solve(a.transpose()).cast<float>();  // k × dim
-  const Eigen::VectorXf muf = mu.cast<float>();
-  const Eigen::MatrixXf af = a.cast<float>();
+  const PcaCoefficientSolver solver(model.basis_, samples.directions, o);
 
-  const bool masked = o.mask != PcaMaskMode::kNone;
-  const int black = o.thresholds.black_max, clipped = o.thresholds.clipped_min;
-  // Coefficients of a block of pixels, masked samples fitted around.
+  // 5. Every pixel's coefficients; ranges from the sampled pixels' quantiles; quantised.
   std::atomic<size_t> n_masked{0}, n_refit{0};
-  auto solve_block = [&](const size_t* index, size_t count, Eigen::MatrixXf* out) {
-    Eigen::MatrixXf y(dim, static_cast<Eigen::Index>(count));
-    for (size_t i = 0; i < count; ++i) {
-      const uint8_t* v = samples.values.data() + index[i] * dim;
-      for (int d = 0; d < dim; ++d) y(d, static_cast<Eigen::Index>(i)) = v[d] - muf(d);
-    }
-    *out = proj * y;  // k × count
-    if (!masked) return;
+  Eigen::MatrixXf coeffs(k, static_cast<Eigen::Index>(pixels));
+  const auto blocks = PcaCoefficientBlocks(pixels, o.threads);
+  // The blocks of each of ParallelFor's chunks, solved on that chunk's thread.
+  ParallelFor(pixels, o.threads, [&](size_t lo, size_t hi) {
+    Eigen::MatrixXf part;
     size_t local_masked = 0, local_refit = 0;
-    std::vector<int> drop;
-    Eigen::VectorXf pred(dim);
-    for (size_t i = 0; i < count; ++i) {
-      const uint8_t* v = samples.values.data() + index[i] * dim;
-      drop.clear();
-      bool any = false;
-      for (int d = 0; d < dim; ++d) {
-        if (v[d] > black && v[d] < clipped) continue;
-        if (!any && o.mask == PcaMaskMode::kHinge) pred.noalias() = af * out->col(static_cast<Eigen::Index>(i));
-        any = true;
-        ++local_masked;
-        // Hinge: a clipped sample is left out where the fit already reaches it, a black one
-        // where the fit is already below it; elsewhere it pulls the fit towards its value.
-        const float p = muf(d) + (o.mask == PcaMaskMode::kHinge ? pred(d) : 0.0f);
-        if (o.mask == PcaMaskMode::kDrop || (v[d] >= clipped && p >= v[d]) ||
-            (v[d] <= black && p <= v[d]))
-          drop.push_back(d);
-      }
-      if (!any || drop.empty() || static_cast<int>(drop.size()) > dim - 2 * k) continue;
-      Eigen::MatrixXd g = ata;
-      Eigen::VectorXd rhs = a.transpose() * y.col(static_cast<Eigen::Index>(i)).cast<double>();
-      for (int d : drop) {
-        g.noalias() -= a.row(d).transpose() * a.row(d);
-        rhs.noalias() -= a.row(d).transpose() * static_cast<double>(y(d, static_cast<Eigen::Index>(i)));
-      }
-      const Eigen::LLT<Eigen::MatrixXd> llt(g);
-      // Too few samples left to hold every component: keep the unmasked solution.
-      if (llt.info() != Eigen::Success) continue;
-      const auto diag = llt.matrixLLT().diagonal();
-      if (!(diag.minCoeff() > 1e-4 * diag.maxCoeff())) continue;
-      out->col(static_cast<Eigen::Index>(i)) = llt.solve(rhs).cast<float>();
-      ++local_refit;
+    for (const auto& [start, count] : blocks) {
+      if (start < lo || start >= hi) continue;
+      solver.Solve(samples.values.data() + start * dim, count, &part, &local_masked, &local_refit);
+      coeffs.middleCols(static_cast<Eigen::Index>(start), static_cast<Eigen::Index>(count)) = part;
     }
     n_masked += local_masked;
     n_refit += local_refit;
-  };
-
-  // 5. Every pixel's coefficients; ranges from the sampled pixels' quantiles; quantised.
-  const size_t block = 2048;
-  Eigen::MatrixXf coeffs(k, static_cast<Eigen::Index>(pixels));
-  ParallelFor(pixels, o.threads, [&](size_t lo, size_t hi) {
-    std::vector<size_t> index;
-    Eigen::MatrixXf part;
-    for (size_t start = lo; start < hi; start += block) {
-      const size_t count = std::min(block, hi - start);
-      index.resize(count);
-      std::iota(index.begin(), index.end(), start);
-      solve_block(index.data(), count, &part);
-      coeffs.middleCols(static_cast<Eigen::Index>(start), static_cast<Eigen::Index>(count)) = part;
-    }
   });
   {
     Eigen::MatrixXf sampled(static_cast<Eigen::Index>(subset.size()), k);
@@ -507,15 +584,8 @@ Result<PcaModel> FitPcaCoefficients(const LightSamples& samples, PcaBasis basis,
   }
   model.planes_.resize(k);
   for (int p = 0; p < k; ++p) {
-    const PlaneQuantisation& q = model.quant_[p];
-    const float inv = static_cast<float>(255.0 / (q.max - q.min));
-    const float lo_v = static_cast<float>(q.min);
     model.planes_[p] = cv::Mat(samples.height, samples.width, CV_8U);
-    uint8_t* dst = model.planes_[p].ptr<uint8_t>();
-    for (size_t i = 0; i < pixels; ++i) {
-      const float v = std::nearbyint((coeffs(p, static_cast<Eigen::Index>(i)) - lo_v) * inv);
-      dst[i] = static_cast<uint8_t>(std::clamp(v, 0.0f, 255.0f));
-    }
+    QuantisePcaPlane(coeffs, p, model.quant_[p], model.planes_[p].ptr<uint8_t>());
   }
   if (stats) {
     stats->masked_samples = n_masked;
@@ -576,28 +646,36 @@ Status PcaModel::Save(const std::string& folder) const {
     RIG_TRY(WriteJpeg((fs::path(folder) / fmt::format("plane_{}.jpg", j)).string(), rgb,
                       JpegColor::kRgb, jpeg_quality_));
   }
+  return WritePcaInfo(folder, width_, height_, basis_, quant_, lights_, jpeg_quality_);
+}
+
+Status WritePcaInfo(const std::string& folder, int width, int height, const PcaBasis& basis,
+                    const std::vector<PlaneQuantisation>& quant,
+                    const std::vector<Vec3>& lights, int jpeg_quality) {
+  std::error_code ec;
+  const int k = basis.components;
   nlohmann::ordered_json info;
-  info["width"] = width_;
-  info["height"] = height_;
+  info["width"] = width;
+  info["height"] = height;
   info["format"] = "jpg";
   info["type"] = "bilinear";
-  info["resolution"] = basis_.resolution;
+  info["resolution"] = basis.resolution;
   info["colorspace"] = "mrgb";
-  std::vector<double> lights;
-  for (const auto& l : lights_) {
-    for (double v : l) lights.push_back(std::round(v * 1000) / 1000);
+  std::vector<double> flat;
+  for (const auto& l : lights) {
+    for (double v : l) flat.push_back(std::round(v * 1000) / 1000);
   }
-  info["lights"] = lights;
+  info["lights"] = flat;
   info["nplanes"] = k;
-  info["quality"] = jpeg_quality_;
+  info["quality"] = jpeg_quality;
   info["colorprofile"] = "sRGB";
-  info["basis"] = basis_.stored;
+  info["basis"] = basis.stored;
   nlohmann::ordered_json material;
   std::vector<double> scale, bias, range;
   for (int p = 0; p < k; ++p) {
-    scale.push_back(quant_[p].scale());
-    bias.push_back(quant_[p].bias());
-    range.push_back(basis_.range[p]);
+    scale.push_back(quant[p].scale());
+    bias.push_back(quant[p].bias());
+    range.push_back(basis.range[p]);
   }
   material["scale"] = scale;
   material["bias"] = bias;
@@ -605,10 +683,10 @@ Status PcaModel::Save(const std::string& folder) const {
   info["materials"] = nlohmann::ordered_json::array({material});
   // Ours, ignored by relight's readers: what produced the model.
   info["rig"] = {{"family", "pca-bilinear"},
-                 {"prior", basis_.prior == GridPrior::kBending ? "bending" : "membrane"},
-                 {"smoothness", basis_.smoothness},
-                 {"light_loo_rms", basis_.light_loo_rms},
-                 {"eigenvalues", basis_.eigenvalues}};
+                 {"prior", basis.prior == GridPrior::kBending ? "bending" : "membrane"},
+                 {"smoothness", basis.smoothness},
+                 {"light_loo_rms", basis.light_loo_rms},
+                 {"eigenvalues", basis.eigenvalues}};
   const fs::path path = fs::path(folder) / "info.json";
   const fs::path tmp = fs::path(folder) / ".info.json.tmp";
   {

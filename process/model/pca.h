@@ -11,6 +11,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -126,6 +127,14 @@ struct PcaComponents {
 };
 Result<PcaComponents> ComputePcaComponents(const LightSamples& samples, const PcaOptions& options,
                                            int count);
+// The same from the sampled pixels alone (what a streamed fit gathers): `sampled` holds the
+// samples of the `subset` pixels in that order (any width × height of subset.size() pixels).
+// On the pixels ComputePcaComponents samples, the result is the same to the last bit.
+Result<PcaComponents> ComputePcaComponentsOfSample(const LightSamples& sampled,
+                                                   std::vector<size_t> subset, int count);
+// The pixels ComputePcaComponents samples (options.basis_pixels, options.seed): one per
+// stride at a seeded offset within it, increasing; all of them when wanted >= pixels.
+std::vector<size_t> SamplePixels(size_t pixels, size_t wanted, uint64_t seed);
 // Exactly the components of the same pixels without the `dropped` lights.
 PcaComponents PcaComponentsWithout(const PcaComponents& full, const std::vector<int>& dropped,
                                    int count);
@@ -144,6 +153,43 @@ Result<PcaBasis> FitPcaBasis(const PcaComponents& components, int k, int res, do
 Result<PcaModel> FitPcaCoefficients(const LightSamples& samples, PcaBasis basis,
                                     const PcaOptions& options, const std::vector<size_t>& subset,
                                     PcaFitStats* stats = nullptr);
+// The pieces of FitPcaCoefficients, for callers that hold a band of pixels at a time and want
+// the same bytes. The solver: coefficients of contiguous pixels (`count` pixels' samples laid
+// out as LightSamples::values) through the basis at `directions`, masked samples fitted
+// around; *out is k × count; *masked and *refitted are added to (sample-channels at or beyond
+// the thresholds, pixels solved around them). Solve is const: any number of threads at once.
+class PcaCoefficientSolver {
+ public:
+  PcaCoefficientSolver(const PcaBasis& basis, const std::vector<Vec3>& directions,
+                       const PcaOptions& options);
+  int components() const { return k_; }
+  void Solve(const uint8_t* values, size_t count, Eigen::MatrixXf* out, size_t* masked,
+             size_t* refitted) const;
+
+ private:
+  int dim_ = 0, k_ = 0;
+  PcaMaskMode mode_ = PcaMaskMode::kHinge;
+  LdrMaskThresholds thresholds_;
+  Eigen::MatrixXd a_, ata_;
+  Eigen::MatrixXf proj_, af_;
+  Eigen::VectorXf muf_;
+};
+// The blocks of pixels [first, first + second) FitPcaCoefficients solves together for this
+// many pixels and threads. A pixel's float coefficients can differ in the last bit with its
+// place in its block (the matrix product's kernels), so the same bytes need the same blocks.
+std::vector<std::pair<size_t, size_t>> PcaCoefficientBlocks(size_t pixels, int threads);
+// Each plane's range from the coefficients of the sampled pixels (rows: pixels in `subset`
+// order, columns: components), at this quantile — as FitPcaCoefficients sets them.
+std::vector<PlaneQuantisation> PcaQuantisation(const Eigen::MatrixXf& sampled, double quantile);
+// Row p of coefficients (k × n) quantised as stored: n bytes to `out`.
+void QuantisePcaPlane(const Eigen::MatrixXf& coefficients, int p, const PlaneQuantisation& q,
+                      uint8_t* out);
+// info.json alone, exactly as PcaModel::Save writes it beside the planes (replaced through a
+// temporary name), for writers that produce the planes themselves; the folder must exist.
+Status WritePcaInfo(const std::string& folder, int width, int height, const PcaBasis& basis,
+                    const std::vector<PlaneQuantisation>& quantisation,
+                    const std::vector<Vec3>& lights, int jpeg_quality);
+
 // The same basis with only its first k components (exact: each is quantised on its own).
 PcaBasis TruncatePcaBasis(const PcaBasis& basis, int k);
 

@@ -38,23 +38,41 @@ LightSamples PickPixels(const LightSamples& s, const std::vector<size_t>& pixels
   return out;
 }
 
-// A central crop of at most `max_side`², for measuring compression.
-LightSamples Crop(const LightSamples& s, int max_side, std::vector<size_t>* picked) {
-  const int w = std::min(s.width, max_side), h = std::min(s.height, max_side);
-  const int x0 = (s.width - w) / 2, y0 = (s.height - h) / 2;
-  picked->clear();
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) picked->push_back(static_cast<size_t>(y0 + y) * s.width + x0 + x);
-  LightSamples out = PickPixels(s, *picked);
-  out.width = w;
-  out.height = h;
-  return out;
+}  // namespace
+
+cv::Rect PcaChoiceCrop(int width, int height) {
+  const int max_side = 384;
+  const int w = std::min(width, max_side), h = std::min(height, max_side);
+  return {(width - w) / 2, (height - h) / 2, w, h};
 }
 
-}  // namespace
+PcaChoiceInput PcaChoiceInputOf(const LightSamples& s, const std::vector<size_t>& subset) {
+  PcaChoiceInput in;
+  in.pixels = s.pixels();
+  in.sampled = PickPixels(s, subset);
+  const cv::Rect r = PcaChoiceCrop(s.width, s.height);
+  std::vector<size_t> picked;
+  for (int y = 0; y < r.height; ++y)
+    for (int x = 0; x < r.width; ++x)
+      picked.push_back(static_cast<size_t>(r.y + y) * s.width + r.x + x);
+  in.crop = PickPixels(s, picked);
+  in.crop.width = r.width;
+  in.crop.height = r.height;
+  return in;
+}
 
 Result<PcaChoice> ChoosePca(const LightSamples& s, const PcaComponents& comps,
                             const PcaChoiceOptions& o) {
+  return ChoosePca(PcaChoiceInputOf(s, comps.subset), comps, o);
+}
+
+Result<PcaChoice> ChoosePca(const PcaChoiceInput& in, const PcaComponents& comps,
+                            const PcaChoiceOptions& o) {
+  const LightSamples& s = in.sampled;  // directions and the sampled pixels' samples
+  if (s.pixels() != comps.subset.size() || in.crop.pixels() == 0) {
+    return MakeError(ErrorCode::kInternal, "pca choice", "{} sampled pixels for {} in the subset",
+                     s.pixels(), comps.subset.size());
+  }
   const int lights = s.lights();
   int kmax = 0;
   for (int k : o.components) kmax = std::max(kmax, k);
@@ -62,7 +80,7 @@ Result<PcaChoice> ChoosePca(const LightSamples& s, const PcaComponents& comps,
   if (kmax < 1 || o.resolutions.empty() || o.qualities.empty()) {
     return MakeError(ErrorCode::kInvalidInput, "pca choice", "no candidates");
   }
-  const double pixels = static_cast<double>(s.pixels());
+  const double pixels = static_cast<double>(in.pixels);
 
   // 1. Model error at held-out lights, for every grid and every number of components: the
   //    components without the validation lights (exact, from the kept covariance), the grid
@@ -72,7 +90,7 @@ Result<PcaChoice> ChoosePca(const LightSamples& s, const PcaComponents& comps,
   const PcaComponents train = PcaComponentsWithout(comps, held, kmax);
   std::vector<size_t> eval;
   const size_t step = std::max<size_t>(1, comps.subset.size() / o.validation_pixels);
-  for (size_t i = 0; i < comps.subset.size(); i += step) eval.push_back(comps.subset[i]);
+  for (size_t i = 0; i < comps.subset.size(); i += step) eval.push_back(i);  // into `sampled`
   const LightSamples picked = PickPixels(s, eval);
   const LightSamples fit_part = [&] {
     LightSamples t = picked;
@@ -121,11 +139,10 @@ Result<PcaChoice> ChoosePca(const LightSamples& s, const PcaComponents& comps,
   // 2. What JPEG adds and what it costs, from the planes of a central crop fitted with all
   //    components: per plane, its compression error in coefficient units times the mean
   //    square of its basis function over the lights; bytes scaled to the whole image.
-  std::vector<size_t> crop_pixels;
-  const LightSamples crop = Crop(s, 384, &crop_pixels);
+  const LightSamples& crop = in.crop;
   PcaOptions po = o.base;
   po.components = kmax;
-  std::vector<size_t> crop_index(crop_pixels.size());
+  std::vector<size_t> crop_index(crop.pixels());
   for (size_t i = 0; i < crop_index.size(); ++i) crop_index[i] = i;
   const PcaBasis& mid_basis = by_grid[by_grid.size() / 2].full_basis;
   RIG_ASSIGN_OR_RETURN(PcaModel crop_model, FitPcaCoefficients(crop, mid_basis, po, crop_index));
@@ -145,7 +162,7 @@ Result<PcaChoice> ChoosePca(const LightSamples& s, const PcaComponents& comps,
       }
       RIG_ASSIGN_OR_RETURN(auto bytes, EncodeJpeg(rgb, JpegColor::kRgb, o.qualities[qi]));
       file_bytes[qi][j] = static_cast<double>(bytes.size()) * pixels /
-                          static_cast<double>(crop_pixels.size());
+                          static_cast<double>(crop.pixels());
       RIG_ASSIGN_OR_RETURN(cv::Mat back, DecodeJpeg(bytes, "pca choice"));
       for (int c = 0; c < 3 && 3 * j + c < kmax; ++c) {
         const int p = 3 * j + c;
@@ -159,7 +176,7 @@ Result<PcaChoice> ChoosePca(const LightSamples& s, const PcaComponents& comps,
           }
         }
         const double scale = crop_model.quantisation()[p].scale();
-        plane_err[qi][p] = e / static_cast<double>(crop_pixels.size()) * scale * scale;
+        plane_err[qi][p] = e / static_cast<double>(crop.pixels()) * scale * scale;
       }
     }
   }

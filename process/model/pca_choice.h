@@ -47,6 +47,19 @@ struct PcaChoice {
 Result<PcaChoice> ChoosePca(const LightSamples& samples, const PcaComponents& components,
                             const PcaChoiceOptions& options);
 
+// All the choice reads of a capture, gathered without holding it (a streamed fit collects it
+// in one pass): the same choice as from the whole samples.
+struct PcaChoiceInput {
+  size_t pixels = 0;     // of the whole capture
+  LightSamples sampled;  // the pixels of the components' `subset`, in that order (one row)
+  LightSamples crop;     // the pixels of PcaChoiceCrop, row-major, crop width × height
+};
+// The central crop (at most 384 × 384) whose planes measure what JPEG costs and adds.
+cv::Rect PcaChoiceCrop(int width, int height);
+PcaChoiceInput PcaChoiceInputOf(const LightSamples& samples, const std::vector<size_t>& subset);
+Result<PcaChoice> ChoosePca(const PcaChoiceInput& input, const PcaComponents& components,
+                            const PcaChoiceOptions& options);
+
 // The whole automatic fit: components (given — exactly the samples' own, e.g. a fold's from
 // PcaComponentsWithout — or computed), the choice, the model of the chosen size.
 struct PcaAutoFit {

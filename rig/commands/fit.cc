@@ -9,6 +9,7 @@
 #include "config/log.h"
 #include "process/evaluate/rti_loo.h"
 #include "process/model/map_fit.h"
+#include "process/model/pca_stream.h"
 #include "process/model/rti_fit.h"
 #include "rig/commands/command.h"
 
@@ -63,8 +64,17 @@ void AddOptions(CLI::App& app, FitArgs* a) {
   app.add_option("--downsample", a->downsample, "with --lp: shrink images by this factor first")
       ->check(CLI::Range(1, 64));
   app.add_option("--stream-above-mb", a->stream_mb,
-                 "with --list: stream row bands when the samples exceed this many MB");
+                 "stream row bands when the samples exceed this many MB (default 1024): "
+                 "--list, and --lp with auto/pca (two passes over the JPEGs, the same model; "
+                 "--loo-report is refused above it)");
   AddLogLevelOption(app, &a->log_level);
+}
+
+void PrintLooRow(const RtiLooRow& r) {
+  std::printf("  %-14s %-40s %6.2f / %6.2f dB  %6.2f B/px  %6.2f s\n", r.family.c_str(),
+              r.setting.c_str(), r.psnr_mean_mse_db, r.psnr_median_db, r.bytes_per_pixel,
+              r.fit_time_s);
+  std::fflush(stdout);
 }
 
 // The harmonic options from config and the command line.
@@ -91,8 +101,84 @@ Result<FitOptions> HarmonicOptions(const FitArgs& a, ProcessConfig pc) {
   return FitOptionsFromConfig(pc);
 }
 
+// The choice options of an auto/pca fit, as FitRti sets them from the request.
+PcaChoiceOptions ChoiceOptionsOf(const RtiFitRequest& req) {
+  PcaChoiceOptions co = req.choice;
+  if (req.components > 0) co.components = {req.components};
+  if (req.grid_resolution > 0) co.resolutions = {req.grid_resolution};
+  if (req.jpeg_quality > 0) co.qualities = {req.jpeg_quality};
+  return co;
+}
+
+// auto/pca on a capture whose samples exceed --stream-above-mb: FitPcaStreaming.
+int RunLpStreamed(const FitArgs& a, const std::vector<LpEntry>& entries, const RtiFitRequest& req,
+                  uint64_t sample_bytes) {
+  std::printf("rig fit: %s: samples %.0f MB > --stream-above-mb %zu: streaming bands of rows\n",
+              a.lp.c_str(), static_cast<double>(sample_bytes) / (1 << 20), a.stream_mb);
+  std::fflush(stdout);
+  PcaStreamOptions so;
+  so.lp = a.lp;
+  const PcaChoiceOptions co = ChoiceOptionsOf(req);
+  auto fit = FitPcaStreaming(entries, co, a.out, so);
+  if (!fit.ok()) return ReportError("fit", fit.error());
+  if (!a.report.empty()) {
+    std::string md = fmt::format(
+        "# Model of {}\n\n{} images {}x{} (streamed); masked (at or below {} or at or above {} "
+        "in any channel, per channel): {} sample-channels, {:.1f}% of all, in {:.1f}% of "
+        "pixels\n\n## Choice\n\n{}.\n\nSamples fitted around: {} sample-channels ({} pixels "
+        "solved around them, mask {}).\n\n",
+        a.lp, fit->lights, fit->width, fit->height, co.base.thresholds.black_max,
+        co.base.thresholds.clipped_min, fit->masked_samples, 100 * fit->masked_fraction,
+        100 * fit->pixels_with_masked, fit->choice.reason, fit->stats.masked_samples,
+        fit->stats.refitted_pixels, PcaMaskModeName(co.base.mask));
+    md += PcaChoiceMarkdown(fit->choice);
+    std::ofstream f(a.report);
+    f << md;
+    if (!f) return ReportError("fit", MakeError(ErrorCode::kIo, a.report, "cannot write"));
+  }
+  const double bpp = static_cast<double>(ModelBytesOnDisk(a.out)) /
+                     (static_cast<double>(fit->width) * fit->height);
+  std::printf("rig fit: wrote %s (%.2f B/px): pca-bilinear, %s; masked %.1f%% of samples (%.1f%% "
+              "of pixels); streamed in %d bands: sample %.2f s, choice %.2f s, planes %.2f s\n",
+              a.out.c_str(), bpp, fit->choice.reason.c_str(), 100 * fit->masked_fraction,
+              100 * fit->pixels_with_masked, fit->bands, fit->gather_s, fit->choice_s,
+              fit->write_s);
+  return 0;
+}
+
 int RunLp(const FitArgs& a, const Config& config) {
-  auto capture = LoadRtiCapture(a.lp, a.downsample);
+  // Above the bound, auto/pca stream; --loo-report refits in memory and is refused.
+  const std::string family = a.basis.empty() ? "auto" : a.basis;
+  const bool folder_family = family == "auto" || family == "pca";
+  std::vector<LpEntry> entries;
+  uint64_t sample_bytes = 0;
+  {
+    auto read = ReadLp(a.lp);
+    if (!read.ok()) return ReportError("fit", read.error());
+    entries = std::move(*read);
+    // An image that cannot be probed is reported by LoadRtiCapture, with its .lp line.
+    auto bytes = RtiSampleBytes(entries, a.downsample);
+    if (bytes.ok()) sample_bytes = *bytes;
+  }
+  const bool above = sample_bytes > static_cast<uint64_t>(a.stream_mb) * 1024 * 1024;
+  if (above && !a.loo_report.empty()) {
+    return ReportError(
+        "fit", MakeError(ErrorCode::kInvalidInput, a.lp,
+                         "--loo-report holds every sample in memory and refits it per image: "
+                         "{:.0f} MB of samples is above --stream-above-mb {}; use --downsample, "
+                         "or raise --stream-above-mb if the memory is there",
+                         static_cast<double>(sample_bytes) / (1 << 20), a.stream_mb));
+  }
+  if (above && folder_family && a.downsample > 1) {
+    return ReportError(
+        "fit", MakeError(ErrorCode::kInvalidInput, a.lp,
+                         "the streamed fit reads the images at full size: {:.0f} MB of samples "
+                         "after --downsample {} is still above --stream-above-mb {}; use a "
+                         "larger --downsample, or none",
+                         static_cast<double>(sample_bytes) / (1 << 20), a.downsample, a.stream_mb));
+  }
+  const bool streamed = above && folder_family;
+  auto capture = streamed ? Result<RtiCapture>(RtiCapture{}) : LoadRtiCapture(a.lp, a.downsample);
   if (!capture.ok()) return ReportError("fit", capture.error());
   if (!a.loo_report.empty()) {
     RtiLooOptions lo;
@@ -102,28 +188,9 @@ int RunLp(const FitArgs& a, const Config& config) {
     std::printf("rig fit: leave-one-out on %s (%d images %dx%d), refitting without each...\n",
                 a.lp.c_str(), capture->samples.lights(), capture->samples.width,
                 capture->samples.height);
-    auto rows = RtiLooTable(*capture, lo, [](const RtiLooRow& r) {
-      std::printf("  %-14s %-40s %6.2f / %6.2f dB  %6.2f B/px  %6.2f s\n", r.family.c_str(),
-                  r.setting.c_str(), r.psnr_mean_mse_db, r.psnr_median_db, r.bytes_per_pixel,
-                  r.fit_time_s);
-      std::fflush(stdout);
-    });
+    auto rows = WriteRtiLooReport(*capture, lo, a.loo_report, PrintLooRow);
     if (!rows.ok()) return ReportError("fit", rows.error());
-    // relight-cli's published figures belong to the shared icon (72 images, 402x395) only.
-    if (capture->samples.lights() == 72 && capture->samples.width == 402 &&
-        capture->samples.height == 395) {
-      for (auto& r : RelightPublishedIconRows()) rows->push_back(r);
-    }
-    const std::string md = RtiLooMarkdown(*capture, *rows);
-    std::ofstream f(a.loo_report);
-    f << md;
-    if (!f) return ReportError("fit", MakeError(ErrorCode::kIo, a.loo_report, "cannot write"));
-    const std::string prefix = (std::filesystem::path(a.loo_report).parent_path() /
-                                std::filesystem::path(a.loo_report).stem()).string();
-    Status charts = WriteRtiLooCharts(*rows, prefix);
-    if (!charts.ok()) return ReportError("fit", charts.error());
-    std::printf("rig fit: wrote %s and %s-psnr-{bytes,time}.png\n", a.loo_report.c_str(),
-                prefix.c_str());
+    std::printf("rig fit: wrote %s and its charts beside it\n", a.loo_report.c_str());
     if (a.out.empty()) return 0;
   }
   RtiFitRequest req;
@@ -141,7 +208,6 @@ int RunLp(const FitArgs& a, const Config& config) {
   auto harmonic = HarmonicOptions(a, pc);
   if (!harmonic.ok()) return ReportError("fit", harmonic.error());
   req.harmonic = *harmonic;
-  const bool folder_family = req.family == "auto" || req.family == "pca";
   if (folder_family && std::filesystem::path(a.out).extension() == ".exr") {
     return ReportError("fit", MakeError(ErrorCode::kInvalidInput, a.out,
                                         "the {} model is a folder (relight's web format: "
@@ -149,6 +215,7 @@ int RunLp(const FitArgs& a, const Config& config) {
                                         "sh|hsh|ptm for an EXR",
                                         req.family));
   }
+  if (streamed) return RunLpStreamed(a, entries, req, sample_bytes);
   auto fit = FitRti(*capture, req);
   if (!fit.ok()) return ReportError("fit", fit.error());
   Status saved = fit->model->Save(a.out);
