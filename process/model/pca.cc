@@ -21,6 +21,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>
+#include <Eigen/QR>
 #include <Eigen/SVD>
 #include <Eigen/Sparse>
 #include <fmt/format.h>
@@ -110,60 +111,95 @@ struct GridFit {
   double smoothness;
   double loo_rms;
   Eigen::MatrixXd grid;  // nodes × functions
+  int trend = 0;         // unpenalised trend terms (4: 1, lx, ly, lz)
 };
 
+// The direction of grid node (x, y): relight's inverse octahedral map.
+Vec3 NodeDirection(int x, int y, int res) {
+  const double ox = 2.0 * x / (res - 1) - 1, oy = 2.0 * y / (res - 1) - 1;
+  const double dx = (ox - oy) / 2, dy = (ox + oy) / 2;
+  Vec3 n = {dx, dy, std::max(0.0, 1 - std::abs(dx) - std::abs(dy))};
+  const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+  for (auto& c : n) c /= len;
+  return n;
+}
+
 // Fits every function (columns of f, one row per light) onto the grid with one shared
-// smoother; with `smoothness` < 0 the prior's kind and strength minimise the weighted
-// leave-one-out error over lights (exact for a linear smoother: r / (1 − H_ll)).
-GridFit FitGrid(const Eigen::MatrixXd& w, const Eigen::MatrixXd& f, const Eigen::VectorXd& weight,
-                int res, double smoothness) {
-  const double data_scale = std::max(w.squaredNorm() / static_cast<double>(w.cols()), 1e-12);
+// smoother: an unpenalised trend linear in the light direction (1, lx, ly, lz — what a matte
+// surface is) plus a grid residual under the prior; both are baked into the stored grid.
+// With `smoothness` < 0 the trend (or none), the prior's kind and its strength minimise the
+// weighted leave-one-out error over lights (exact for a linear smoother: r / (1 − H_ll)).
+GridFit FitGrid(const Eigen::MatrixXd& w, const std::vector<Vec3>& lights,
+                const Eigen::MatrixXd& f, const Eigen::VectorXd& weight, int res,
+                double smoothness) {
+  const Eigen::Index nl = w.rows(), nodes = w.cols();
+  const double data_scale = std::max(w.squaredNorm() / static_cast<double>(nodes), 1e-12);
   const double total_weight = weight.sum() * static_cast<double>(f.rows());
   GridFit best{GridPrior::kBending, 0, std::numeric_limits<double>::infinity(), {}};
-  for (GridPrior prior : {GridPrior::kBending, GridPrior::kMembrane}) {
-    // With M = Q + δI = L·Lᵀ and K = L⁻¹·Wᵀ = U·Σ·Vᵀ (thin), every strength λ costs only
-    // diagonal work: S = (WᵀW + λM)⁻¹Wᵀ = L⁻ᵀ·U·diag(σ/(σ²+λ))·Vᵀ, H = W·S = V·diag(σ²/(σ²+λ))·Vᵀ.
-    const PriorFactor& factor = CachedPriorFactor(res, prior);
-    const Eigen::MatrixXd k =
-        factor.llt.matrixL().solve(w.transpose()) / std::sqrt(data_scale);  // nodes × lights
-    // Thin SVD of K from the small eigenproblem KᵀK = V·Σ²·Vᵀ (lights × lights).
-    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> small(k.transpose() * k);
-    const Eigen::VectorXd sigma = small.eigenvalues().cwiseMax(0).cwiseSqrt();
-    const Eigen::MatrixXd& v = small.eigenvectors();
-    struct {
-      const Eigen::MatrixXd& matrixV() const { return *v_; }
-      Eigen::MatrixXd matrixU() const { return (*k_) * (*v_) * inv_.asDiagonal(); }
-      const Eigen::MatrixXd* v_;
-      const Eigen::MatrixXd* k_;
-      Eigen::VectorXd inv_;
-    } svd{&v, &k, (sigma.array() > 1e-12 * sigma.maxCoeff()).select(sigma.array().inverse(), 0.0).matrix()};
-    const auto& llt = factor.llt;
-    const Eigen::MatrixXd vtf = v.transpose() * f;
-    std::vector<double> strengths;
-    if (smoothness >= 0) {
-      strengths.push_back(smoothness);
-    } else {
-      for (double e = -5; e <= 1.01; e += 0.5) strengths.push_back(std::pow(10.0, e));
-    }
-    for (double lambda : strengths) {
-      const Eigen::ArrayXd shrink = sigma.array().square() / (sigma.array().square() + lambda);
-      const Eigen::MatrixXd fitted = v * (shrink.matrix().asDiagonal() * vtf);
-      const Eigen::VectorXd hat_diag = (v.array().square().rowwise() * shrink.transpose()).rowwise().sum();
-      double err = 0;
-      for (Eigen::Index l = 0; l < f.rows(); ++l) {
-        const double denom = std::max(1.0 - hat_diag(l), 1e-6);
-        err += ((f.row(l) - fitted.row(l)).array().square() * weight.transpose().array()).sum() /
-               (denom * denom);
+  for (int trend : {4, 0}) {
+    // P projects the data onto the trend's span, M = I − P onto what the grid must carry:
+    // hat = P + M·W·(WᵀMW + λQ)⁻¹·WᵀM, the second part computed as below with W → M·W.
+    Eigen::MatrixXd h(nl, trend), hn(nodes, trend);
+    for (Eigen::Index l = 0; l < nl && trend; ++l)
+      h.row(l) << 1, lights[l][0], lights[l][1], lights[l][2];
+    for (int y = 0; y < res && trend; ++y)
+      for (int x = 0; x < res; ++x) {
+        const Vec3 d = NodeDirection(x, y, res);
+        hn.row(x + y * res) << 1, d[0], d[1], d[2];
       }
-      const double rms = std::sqrt(err / total_weight);
-      if (rms < best.loo_rms) {
-        const Eigen::ArrayXd gain = sigma.array() / (sigma.array().square() + lambda);
-        const Eigen::MatrixXd inner = svd.matrixU() * (gain.matrix().asDiagonal() * vtf);
-        best = {prior, lambda, rms,
-                llt.matrixU().solve(inner) / std::sqrt(data_scale)};
-      }
+    Eigen::MatrixXd proj = Eigen::MatrixXd::Zero(nl, nl);
+    if (trend) {
+      const Eigen::HouseholderQR<Eigen::MatrixXd> qr(h);
+      const Eigen::MatrixXd q1 = qr.householderQ() * Eigen::MatrixXd::Identity(nl, trend);
+      proj = q1 * q1.transpose();
     }
-    if (smoothness >= 0) break;  // a given strength: the bending prior
+    const Eigen::MatrixXd mw = w - proj * w;
+    const Eigen::MatrixXd pf = proj * f;
+    for (GridPrior prior : {GridPrior::kBending, GridPrior::kMembrane}) {
+      // With Q + δI = L·Lᵀ and K = L⁻¹·(MW)ᵀ = U·Σ·Vᵀ (thin), every strength λ costs only
+      // diagonal work: g = L⁻ᵀ·U·diag(σ/(σ²+λ))·Vᵀ·f, M·W·g = V·diag(σ²/(σ²+λ))·Vᵀ·f.
+      const PriorFactor& factor = CachedPriorFactor(res, prior);
+      const Eigen::MatrixXd k = factor.llt.matrixL().solve(mw.transpose()) / std::sqrt(data_scale);
+      // Thin SVD of K from the small eigenproblem KᵀK = V·Σ²·Vᵀ (lights × lights).
+      const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> small(k.transpose() * k);
+      const Eigen::VectorXd sigma = small.eigenvalues().cwiseMax(0).cwiseSqrt();
+      const Eigen::MatrixXd& v = small.eigenvectors();
+      const Eigen::VectorXd inv =
+          (sigma.array() > 1e-9 * sigma.maxCoeff()).select(sigma.array().inverse(), 0.0).matrix();
+      const Eigen::MatrixXd vtf = v.transpose() * f;
+      std::vector<double> strengths;
+      if (smoothness >= 0) {
+        strengths.push_back(smoothness);
+      } else {
+        for (double e = -5; e <= 1.01; e += 0.5) strengths.push_back(std::pow(10.0, e));
+      }
+      for (double lambda : strengths) {
+        const Eigen::ArrayXd shrink = sigma.array().square() / (sigma.array().square() + lambda);
+        const Eigen::MatrixXd fitted = pf + v * (shrink.matrix().asDiagonal() * vtf);
+        const Eigen::VectorXd hat_diag =
+            proj.diagonal() + (v.array().square().rowwise() * shrink.transpose()).rowwise().sum().matrix();
+        double err = 0;
+        for (Eigen::Index l = 0; l < f.rows(); ++l) {
+          const double denom = std::max(1.0 - hat_diag(l), 1e-6);
+          err += ((f.row(l) - fitted.row(l)).array().square() * weight.transpose().array()).sum() /
+                 (denom * denom);
+        }
+        const double rms = std::sqrt(err / total_weight);
+        if (rms < best.loo_rms) {
+          // U·diag(σ/(σ²+λ)) = K·V·diag(1/σ)·diag(σ/(σ²+λ)) = K·V·diag(1/(σ²+λ)) on σ > 0.
+          const Eigen::ArrayXd gain = inv.array() * sigma.array() / (sigma.array().square() + lambda);
+          const Eigen::MatrixXd inner = k * (v * (gain.matrix().asDiagonal() * vtf));
+          Eigen::MatrixXd grid = factor.llt.matrixU().solve(inner) / std::sqrt(data_scale);
+          if (trend) {
+            const Eigen::MatrixXd beta = h.colPivHouseholderQr().solve(f - w * grid);
+            grid += hn * beta;
+          }
+          best = {prior, lambda, rms, std::move(grid)};
+          best.trend = trend;
+        }
+      }
+      if (smoothness >= 0) break;  // a given strength: the bending prior
+    }
   }
   return best;
 }
@@ -394,7 +430,7 @@ Result<PcaBasis> FitPcaBasis(const PcaComponents& pc, int k, int res, double smo
     for (int p = 0; p < k; ++p) weight((p + 1) * 3 + c) = eigenvalues[p];
   }
   const Eigen::MatrixXd w = GridWeights(pc.lights, res);
-  const GridFit grid = FitGrid(w, f, weight, res, smoothness);
+  const GridFit grid = FitGrid(w, pc.lights, f, weight, res, smoothness);
 
   // 3. The basis as relight stores it: the mean as integers 0..255, components as
   //    127 + range·e with range = 127 / max|e|.
