@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "capture/session/render_source.h"
+#include "process/export/load_any.h"
 #include "process/hdr/hdr.h"
 #include "process/model/model.h"
 #include "process/render/relight.h"
@@ -189,7 +190,7 @@ int RunRender(int argc, char** argv) {
   }
   auto source = ResolveRenderSource(a.source, a.response_option);
   if (!source.ok()) return ReportError("render", source.error());
-  auto model = LoadReflectanceModel(source->model_path);
+  auto model = LoadAnyModel(source->model_path);
   if (!model.ok()) return ReportError("render", model.error());
   if (Status st = ApplySource(a, *source, &*request); !st.ok()) return ReportError("render", st.error());
 

@@ -3,6 +3,8 @@
 
 namespace rig {
 
+int RunExport(int argc, char** argv);  // rig/commands/export.cc
+
 const std::vector<Command>& Commands() {
   static const std::vector<Command> kCommands = {
       {"capture", "acquire a session (on the rig, or simulated with --dry-run)", RunCapture},
@@ -14,6 +16,7 @@ const std::vector<Command>& Commands() {
       {"fit", "fit a reflectance model to radiance maps or an RTI capture", RunFit},
       {"render", "relight a reflectance model with lamps", RunRender},
       {"evaluate", "speed against accuracy of every method: tables, charts, stability report", RunEvaluate},
+      {"export", "write a model in relight's web format, or as a .ptm or .rti file", RunExport},
       {"tonemap", "tone-map an HDR image (.exr, .hdr) for a screen", RunTonemap},
   };
   return kCommands;

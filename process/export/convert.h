@@ -1,0 +1,48 @@
+// Models into relight's bases: exactly where the basis spans the same functions (our PTM
+// order <= 2 and HSH order <= 2, fitted in sRGB space: a linear map of the coefficients), by
+// least squares at the model's own sampled lights otherwise (SH, other orders, linear or log
+// fit spaces, another relight basis) — and in every case the PSNR between the source's render
+// and the result's, so nothing different is ever written silently.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "config/result.h"
+#include "process/export/relight_coefficients.h"
+#include "process/model/model.h"
+#include "process/model/reflectance_model.h"
+
+namespace rig {
+
+struct RelightTarget {
+  RelightType type = RelightType::kPtm;
+  int terms = 6;      // ptm: 6; hsh: 9 or 4
+  bool lrgb = false;  // ptm only: luminance PTM × per-pixel RGB albedo
+};
+
+struct Conversion {
+  RelightCoefficients coefficients;
+  bool exact = false;      // the same function of the light (to float rounding), unquantised
+  double psnr_db = 0;      // source render against the converted one, 8-bit sRGB units (0..255
+                           // clamped, not rounded), over `lights`; +inf when identical
+  double map_residual = 0; // exact maps: largest |B_relight·M − B_ours| over the hemisphere
+  int lights = 0;          // directions of the PSNR (and of the refit)
+  std::string how;         // one line: what was done
+};
+
+// A harmonic model. Lights: the model's sampled lamps (ModelInfo::lamp_directions), the upper
+// hemisphere when it has none. Flagged pixels get zero coefficients (they render 0, as ours).
+Result<Conversion> ConvertToRelight(const Model& model, const RelightTarget& target);
+
+// Any model: a relight-basis model (WrapRelight) is copied or mapped exactly where it can be
+// (same basis; lrgb to rgb), any other is refitted at `lights` (empty: its fitted lights when
+// it carries them, else the hemisphere directions its CheckRegion calls inside).
+Result<Conversion> ConvertToRelight(const ReflectanceModel& model, const RelightTarget& target,
+                                    std::vector<Vec3> lights = {});
+
+// 8-bit sRGB PSNR of two models' renders over directions (both clamped to 0..255).
+double RenderPsnrDb(const ReflectanceModel& a, const ReflectanceModel& b,
+                    const std::vector<Vec3>& directions);
+
+}  // namespace rig

@@ -1,0 +1,175 @@
+// relight's PTM and HSH bases, its evaluation, and the model behind ReflectanceModel.
+#include "process/export/relight_coefficients.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+#include <fmt/format.h>
+
+#include "process/export/relight_files.h"
+#include "process/model/fit.h"
+
+namespace rig {
+namespace {
+
+namespace fs = std::filesystem;
+
+bool HasExtension(const std::string& path, const char* ext) {
+  std::string e = fs::path(path).extension().string();
+  for (char& ch : e) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  return e == ext;
+}
+
+class RelightFamily final : public ReflectanceModel {
+ public:
+  RelightFamily(RelightCoefficients c, std::string origin)
+      : c_(std::move(c)), origin_(std::move(origin)) {
+    CheckRelightCoefficients(c_);
+    spacing_deg_ = c_.lights.empty() ? 0 : SampleSpacingDeg(c_.lights);
+  }
+  std::string family() const override {
+    return c_.lrgb ? "ptm-lrgb" : RelightTypeName(c_.type);
+  }
+  std::string Describe() const override {
+    return fmt::format("{} (relight's basis){}", c_.Summary(),
+                       origin_.empty() ? "" : ", from " + origin_);
+  }
+  int width() const override { return c_.width; }
+  int height() const override { return c_.height; }
+  ValueEncoding encoding() const override { return ValueEncoding::kSrgb; }
+  const LightFrameConfig& light_frame() const override { return frame_; }
+  cv::Mat EvaluateRho(const Vec3& d) const override {
+    cv::Mat v = RenderRelight(c_, d);
+    float* p = v.ptr<float>();
+    const size_t n = v.total() * 3;
+    for (size_t i = 0; i < n; ++i) p[i] = SrgbDecode(p[i] / 255.0f);
+    return v;
+  }
+  RegionCheck CheckRegion(const Vec3& d) const override {
+    if (!c_.lights.empty()) return CheckAgainstLamps(c_.lights, spacing_deg_, d);
+    // Legacy files carry no lights: an RTI capture samples the hemisphere above the object.
+    RegionCheck r;
+    r.spacing_deg = 90;
+    r.nearest_deg = 0;
+    r.inside = d[2] >= 0;
+    return r;
+  }
+  Status Save(const std::string& path) const override {
+    if (HasExtension(path, ".ptm")) return WritePtm(path, c_);
+    if (HasExtension(path, ".rti")) return WriteRti(path, c_);
+    return WriteRelightWeb(path, c_, WebWriteOptions{});
+  }
+  const RelightCoefficients& coefficients() const { return c_; }
+
+ private:
+  RelightCoefficients c_;
+  std::string origin_;
+  LightFrameConfig frame_;
+  double spacing_deg_ = 0;
+};
+
+}  // namespace
+
+const char* RelightTypeName(RelightType type) {
+  return type == RelightType::kPtm ? "ptm" : "hsh";
+}
+
+void RelightWeights(RelightType type, int terms, const Vec3& d, double* w) {
+  const double n = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+  RIG_CHECK(n > 0, "RelightWeights needs a non-zero direction");
+  const double lx = d[0] / n, ly = d[1] / n;
+  if (type == RelightType::kPtm) {
+    RIG_CHECK(terms == 6, "relight's PTM has 6 terms");
+    w[0] = 1;
+    w[1] = lx;
+    w[2] = ly;
+    w[3] = lx * lx;
+    w[4] = lx * ly;
+    w[5] = ly * ly;
+    return;
+  }
+  RIG_CHECK(terms == 9 || terms == 4 || terms == 1, "relight's HSH has 1, 4 or 9 terms");
+  // relight takes lz = sqrt(1 - lx² - ly²), whatever the sign of the z it was given.
+  const double lz = std::sqrt(std::max(0.0, 1.0 - lx * lx - ly * ly));
+  double phi = std::atan2(ly, lx);
+  if (phi < 0) phi += 2 * M_PI;
+  const double theta = std::min(std::acos(std::min(1.0, lz)), M_PI / 2 - 0.01);
+  const double ct = std::cos(theta);
+  const double s = std::sqrt(std::max(0.0, ct - ct * ct));
+  w[0] = 1 / std::sqrt(2 * M_PI);
+  if (terms == 1) return;
+  w[1] = std::sqrt(6 / M_PI) * std::cos(phi) * s;
+  w[2] = std::sqrt(3 / (2 * M_PI)) * (2 * ct - 1);
+  w[3] = std::sqrt(6 / M_PI) * std::sin(phi) * s;
+  if (terms == 4) return;
+  w[4] = std::sqrt(30 / M_PI) * std::cos(2 * phi) * (ct * ct - ct);
+  w[5] = std::sqrt(30 / M_PI) * std::cos(phi) * (2 * ct - 1) * s;
+  w[6] = std::sqrt(5 / (2 * M_PI)) * (1 - 6 * ct + 6 * ct * ct);
+  w[7] = std::sqrt(30 / M_PI) * std::sin(phi) * (2 * ct - 1) * s;
+  w[8] = std::sqrt(30 / M_PI) * std::sin(2 * phi) * (ct * ct - ct);
+}
+
+std::string RelightCoefficients::Summary() const {
+  return fmt::format("{} {}, {} terms{}, {}x{}", RelightTypeName(type), colorspace(), terms,
+                     lrgb ? " of luminance + RGB albedo" : " per channel", width, height);
+}
+
+void CheckRelightCoefficients(const RelightCoefficients& c) {
+  RIG_CHECK(c.type == RelightType::kPtm ? c.terms == 6 : (c.terms == 9 || c.terms == 4 || c.terms == 1),
+            "relight coefficients: wrong number of terms for the type");
+  RIG_CHECK(!c.lrgb || c.type == RelightType::kPtm, "lrgb is a PTM colorspace");
+  RIG_CHECK(static_cast<int>(c.planes.size()) == c.terms, "relight coefficients: plane count");
+  for (const auto& p : c.planes) {
+    RIG_CHECK(p.rows == c.height && p.cols == c.width, "relight coefficients: plane size");
+    RIG_CHECK(p.type() == (c.lrgb ? CV_32FC1 : CV_32FC3), "relight coefficients: plane type");
+  }
+  if (c.lrgb) {
+    RIG_CHECK(c.albedo.rows == c.height && c.albedo.cols == c.width && c.albedo.type() == CV_32FC3,
+              "relight coefficients: albedo");
+  }
+}
+
+cv::Mat RenderRelight(const RelightCoefficients& c, const Vec3& direction) {
+  double w[9];
+  RelightWeights(c.type, c.terms, direction, w);
+  cv::Mat out = cv::Mat::zeros(c.height, c.width, CV_32FC3);
+  if (!c.lrgb) {
+    for (int j = 0; j < c.terms; ++j) cv::scaleAdd(c.planes[j], w[j], out, out);
+    return out;
+  }
+  cv::Mat lum = cv::Mat::zeros(c.height, c.width, CV_32FC1);
+  for (int j = 0; j < c.terms; ++j) cv::scaleAdd(c.planes[j], w[j] / 255.0, lum, lum);
+  for (int y = 0; y < c.height; ++y) {
+    const float* l = lum.ptr<float>(y);
+    const float* a = c.albedo.ptr<float>(y);
+    float* o = out.ptr<float>(y);
+    for (int x = 0; x < c.width; ++x)
+      for (int k = 0; k < 3; ++k) o[3 * x + k] = l[x] * a[3 * x + k];
+  }
+  return out;
+}
+
+std::unique_ptr<ReflectanceModel> WrapRelight(RelightCoefficients c, std::string origin) {
+  return std::make_unique<RelightFamily>(std::move(c), std::move(origin));
+}
+
+const RelightCoefficients* RelightCoefficientsOf(const ReflectanceModel& model) {
+  const auto* f = dynamic_cast<const RelightFamily*>(&model);
+  return f ? &f->coefficients() : nullptr;
+}
+
+std::vector<Vec3> HemisphereDirections() {
+  std::vector<Vec3> dirs{{0, 0, 1}};
+  for (int t = 5; t <= 85; t += 5) {
+    const double theta = t * M_PI / 180;
+    for (int p = 0; p < 360; p += 10) {
+      const double phi = p * M_PI / 180;
+      dirs.push_back({std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi),
+                      std::cos(theta)});
+    }
+  }
+  return dirs;
+}
+
+}  // namespace rig

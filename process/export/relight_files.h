@@ -1,0 +1,60 @@
+// Writers and readers of relight's web format (types ptm and hsh, colorspace rgb), RTIViewer's
+// .ptm (PTM 1.2: PTM_FORMAT_RGB and PTM_FORMAT_LRGB, raw) and .rti (HSH), and .lp light files.
+// Pure functions of RelightCoefficients; every size read from a file is bounded before any
+// allocation, and every refusal names the file and the field.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "config/result.h"
+#include "process/export/relight_coefficients.h"
+#include "process/model/light_direction.h"
+
+namespace rig {
+
+// ---- relight's web format: a folder with info.json and plane_N.jpg -----------------------
+struct WebWriteOptions {
+  int quality = 95;
+  double quantile = 0.0025;  // each plane's range from these quantiles (relight's -Q 0.995)
+  bool ycbcr = true;         // in-JPEG YCbCr 4:4:4 as relight writes rgb planes; false: JCS_RGB
+};
+// The folder is created (it must not hold a model already: info.json present is refused).
+// info.json: width, height, format "jpg", type, colorspace "rgb", lights (when known, 3
+// decimals), nplanes, quality, colorprofile "sRGB", materials [{scale, bias}]. Plane 3j+c =
+// coefficient j of channel c (R, G, B) in plane_j.jpg; scale/bias per plane as relight's
+// Material::Plane reads them: c = 255·(byte/255 − bias)·scale. rgb only (lrgb is refused).
+Status WriteRelightWeb(const std::string& folder, const RelightCoefficients& c,
+                       const WebWriteOptions& options);
+// Types "ptm" (18 planes) and "hsh" (27 or 12 planes), colorspace "rgb".
+Result<RelightCoefficients> ReadRelightWeb(const std::string& folder);
+// The "type" of a web-format folder's info.json ("" when it cannot be read).
+std::string RelightWebType(const std::string& folder);
+
+// ---- RTIViewer's .ptm (Malzbender et al., PTM format 1.2) -------------------------------
+// Header lines PTM_1.2 / PTM_FORMAT_RGB|PTM_FORMAT_LRGB / width / height / 6 scales (floats) /
+// 6 biases (ints), then raw bytes, rows bottom-up, coefficients in the file's order
+// (x², y², xy, x, y, 1): RGB as three blocks (R, G, B) of 6 bytes per pixel; LRGB as 6 bytes
+// per pixel, then 3 (R, G, B) per pixel. coefficient = (byte − bias)·scale (0..255 units; LRGB
+// luminance L = Σ w·coefficient / 255). Scale and bias are chosen to hold every coefficient
+// (biases outside 0..255 are written as they are, unlike relight's savePTM). `c` must be PTM;
+// c.lrgb picks the variant.
+Status WritePtm(const std::string& path, const RelightCoefficients& c);
+// Raw RGB and LRGB (1.2 layout when the version line is exactly PTM_1.2, 9 interleaved bytes
+// per pixel otherwise). JPEG and LUT variants are refused.
+Result<RelightCoefficients> ReadPtm(const std::string& path);
+
+// ---- .rti, HSH ("#HSH1.2") --------------------------------------------------------------
+// "#HSH1.2" / rti_type 3 / "width height 3" / "terms 2 1", then terms float scales and terms
+// float biases (little-endian), then per pixel, rows top-down as relight reads them, per
+// channel (R, G, B) the term bytes: coefficient/255 = byte/255·scale + bias. One scale/bias
+// per term for all three channels, chosen to hold every channel's coefficients.
+Status WriteRti(const std::string& path, const RelightCoefficients& c);
+Result<RelightCoefficients> ReadRti(const std::string& path);
+
+// ---- .lp ----------------------------------------------------------------------------------
+// The count on the first line, then "<image> <x> <y> <z>" per line (6 decimals).
+Status WriteLp(const std::string& path, const std::vector<std::string>& images,
+               const std::vector<Vec3>& directions);
+
+}  // namespace rig

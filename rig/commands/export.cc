@@ -1,0 +1,182 @@
+// rig export MODEL --format relight|ptm|rti --out PATH: a model in relight's web format or
+// RTIViewer's .ptm/.rti, exactly where the format holds it, refitted (and the PSNR lost
+// printed) where it does not; every file written is read back and its PSNR measured.
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+#include <fmt/format.h>
+
+#include "capture/session/render_source.h"
+#include "process/export/convert.h"
+#include "process/export/load_any.h"
+#include "process/export/relight_files.h"
+#include "process/model/model.h"
+#include "rig/commands/command.h"
+
+namespace rig {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ExportArgs {
+  std::string source, format, out, variant = "rgb", basis, log_level;
+  int hsh_terms = 0, quality = 95;
+  bool jpeg_rgb = false;
+};
+
+std::string Db(double db) { return std::isinf(db) ? "identical (inf dB)" : fmt::format("{:.2f} dB", db); }
+
+// The target from the format and the source's own basis.
+Result<RelightTarget> TargetFor(const ExportArgs& a, const std::string& family, int source_terms) {
+  RelightTarget t;
+  std::string basis = a.basis;
+  if (a.format == "ptm") {
+    if (!basis.empty() && basis != "ptm")
+      return MakeError(ErrorCode::kInvalidInput, "--basis", "'{}' with --format ptm", basis);
+    basis = "ptm";
+  } else if (a.format == "rti") {
+    if (!basis.empty() && basis != "hsh")
+      return MakeError(ErrorCode::kInvalidInput, "--basis", "'{}' with --format rti (HSH only)", basis);
+    basis = "hsh";
+  } else if (a.format != "relight") {
+    return MakeError(ErrorCode::kInvalidInput, "--format", "'{}': relight, ptm or rti", a.format);
+  }
+  if (basis.empty()) basis = family.rfind("ptm", 0) == 0 ? "ptm" : "hsh";
+  if (basis == "ptm") {
+    t.type = RelightType::kPtm;
+    t.terms = 6;
+  } else if (basis == "hsh") {
+    t.type = RelightType::kHsh;
+    t.terms = a.hsh_terms ? a.hsh_terms : (family == "hsh" && source_terms <= 4 ? 4 : 9);
+  } else {
+    return MakeError(ErrorCode::kInvalidInput, "--basis", "'{}': ptm or hsh", basis);
+  }
+  if (a.variant == "lrgb") {
+    if (a.format != "ptm")
+      return MakeError(ErrorCode::kInvalidInput, "--ptm-variant", "lrgb is for --format ptm");
+    t.lrgb = true;
+  } else if (a.variant != "rgb") {
+    return MakeError(ErrorCode::kInvalidInput, "--ptm-variant", "'{}': rgb or lrgb", a.variant);
+  }
+  if (a.hsh_terms && t.type != RelightType::kHsh)
+    return MakeError(ErrorCode::kInvalidInput, "--hsh-terms", "only for an HSH target");
+  return t;
+}
+
+}  // namespace
+
+int RunExport(int argc, char** argv) {
+  CLI::App app{"Write a reflectance model in relight's web format (info.json + plane_N.jpg, types "
+               "ptm and hsh) or as RTIViewer's .ptm (PTM 1.2, RGB or LRGB) or .rti (HSH). Where "
+               "the format cannot hold the model exactly (SH, a linear or log fit space, another "
+               "order), it is refitted at the model's sampled lights and the PSNR lost is printed.",
+               "rig export"};
+  ExportArgs a;
+  app.add_option("MODEL", a.source,
+                 "a model (EXR, relight folder, .ptm, .rti) or a session folder (its model)")
+      ->required();
+  app.add_option("--format", a.format, "relight, ptm or rti")->required();
+  app.add_option("--out", a.out, "the folder (relight) or file (.ptm, .rti) to write; must not exist")
+      ->required();
+  app.add_option("--ptm-variant", a.variant, "--format ptm: rgb (default) or lrgb");
+  app.add_option("--basis", a.basis, "--format relight: ptm or hsh (default: the model's, else hsh)");
+  app.add_option("--hsh-terms", a.hsh_terms, "HSH targets: 9 (default) or 4")
+      ->check(CLI::IsMember({4, 9}));
+  app.add_option("--jpeg-quality", a.quality, "--format relight: JPEG quality (default 95)")
+      ->check(CLI::Range(1, 100));
+  app.add_flag("--jpeg-rgb", a.jpeg_rgb,
+               "--format relight: planes in the JPEG RGB colour space (default: YCbCr 4:4:4, as "
+               "relight writes rgb planes)");
+  AddLogLevelOption(app, &a.log_level);
+  if (auto rc = ParseCommandLine(app, argc, argv)) return *rc;
+  if (auto rc = ApplyLogLevel(a.log_level)) return *rc;
+
+  std::error_code ec;
+  if (fs::exists(a.out, ec)) {
+    return ReportError("export", MakeError(ErrorCode::kInvalidInput, a.out,
+                                           "exists; choose another --out (nothing is overwritten)"));
+  }
+  auto source = ResolveRenderSource(a.source);
+  if (!source.ok()) return ReportError("export", source.error());
+  const std::string& path = source->model_path;
+  std::string ext = fs::path(path).extension().string();
+  for (char& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+
+  // Harmonic EXRs convert from their coefficients (exact maps); every other model through
+  // ReflectanceModel.
+  std::unique_ptr<ReflectanceModel> model;
+  Result<Conversion> conversion = MakeError(ErrorCode::kInternal, "export", "not converted");
+  if (ext == ".exr") {
+    auto m = LoadModel(path);
+    if (!m.ok()) return ReportError("export", m.error());
+    auto target = TargetFor(a, m->basis().name(), m->basis().size());
+    if (!target.ok()) return ReportError("export", target.error());
+    conversion = ConvertToRelight(*m, *target);
+    model = WrapHarmonic(std::move(*m));
+  } else {
+    auto m = LoadAnyModel(path);
+    if (!m.ok()) return ReportError("export", m.error());
+    model = std::move(*m);
+    const RelightCoefficients* rc = RelightCoefficientsOf(*model);
+    auto target = TargetFor(a, model->family(), rc ? rc->terms : 0);
+    if (!target.ok()) return ReportError("export", target.error());
+    conversion = ConvertToRelight(*model, *target);
+  }
+  if (!conversion.ok()) return ReportError("export", conversion.error());
+  const RelightCoefficients& c = conversion->coefficients;
+
+  Status written = Ok();
+  std::string what;
+  Result<RelightCoefficients> back = MakeError(ErrorCode::kInternal, "export", "not read");
+  if (a.format == "relight") {
+    WebWriteOptions o;
+    o.quality = a.quality;
+    o.ycbcr = !a.jpeg_rgb;
+    written = WriteRelightWeb(a.out, c, o);
+    what = fmt::format("relight web format, {}, {} planes in {} JPEGs q{} ({})", c.Summary(),
+                       3 * c.terms, c.terms, a.quality, a.jpeg_rgb ? "RGB" : "YCbCr 4:4:4");
+    if (written.ok()) back = ReadRelightWeb(a.out);
+  } else if (a.format == "ptm") {
+    written = WritePtm(a.out, c);
+    what = fmt::format("PTM 1.2, {}, raw", c.lrgb ? "PTM_FORMAT_LRGB" : "PTM_FORMAT_RGB");
+    if (written.ok()) back = ReadPtm(a.out);
+  } else {
+    written = WriteRti(a.out, c);
+    what = fmt::format("HSH .rti (#HSH1.2, rti_type 3), {} terms per channel, 1-byte elements", c.terms);
+    if (written.ok()) back = ReadRti(a.out);
+  }
+  if (!written.ok()) return ReportError("export", written.error());
+  if (!back.ok()) return ReportError("export", back.error().Within("reading back what was written"));
+
+  std::printf("rig export: wrote %s (%s, %dx%d)\n", a.out.c_str(), what.c_str(), c.width, c.height);
+  std::printf("  from %s: %s\n", path.c_str(), model->Describe().c_str());
+  std::printf("  %s\n", conversion->how.c_str());
+  if (conversion->exact) {
+    std::printf("  held exactly before quantisation (%s over %d lights)\n",
+                Db(conversion->psnr_db).c_str(), conversion->lights);
+  } else {
+    std::printf("  refitted: %s PSNR against the source's render over %d lights, before "
+                "quantisation (8-bit sRGB)\n",
+                Db(conversion->psnr_db).c_str(), conversion->lights);
+  }
+  // The whole loss: what a reader of the file renders against the source, at the same lights.
+  std::vector<Vec3> lights = c.lights.empty() ? HemisphereDirections() : c.lights;
+  const auto reread = WrapRelight(std::move(*back), a.out);
+  std::printf("  as written, read back: %s PSNR against the source over %zu lights (8-bit sRGB)\n",
+              Db(RenderPsnrDb(*model, *reread, lights)).c_str(), lights.size());
+  const LightFrameConfig& frame = model->light_frame();
+  if (frame.h_sign != 1 || frame.v_sign != 1 || frame.h_offset_deg != 0 || frame.v_offset_deg != 0) {
+    std::printf("  note: the format holds object-frame directions; the model's light frame "
+                "(rig angles) is not stored\n");
+  }
+  const auto e = model->lamp_radiance_rgb();
+  if (model->encoding() == ValueEncoding::kLinear && (e[0] != 1 || e[1] != 1 || e[2] != 1)) {
+    std::printf("  note: values are the sRGB encoding of rho (a unit lamp); the capture lamp's "
+                "radiance (%g, %g, %g) is not stored\n", e[0], e[1], e[2]);
+  }
+  return 0;
+}
+
+}  // namespace rig

@@ -1,0 +1,128 @@
+// `rig export`: an EXR model to relight's web format, .ptm (RGB, LRGB) and .rti, each rendered
+// by `rig render` as the EXR renders; refits print the PSNR lost; refusals exit 2 naming the file.
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "process/io/exr_io.h"
+#include "process/model/fit.h"
+#include "process/model/model.h"
+#include "tests/support/run_rig.h"
+
+namespace rig {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+using testing::RunRig;
+
+// A smooth 48x32 model in sRGB fit space, sampled on h 0-90, v 0-30 (10° steps).
+std::string WriteModel(const std::string& dir, BasisKind kind, int order, FitSpace space) {
+  ModelInfo info;
+  info.method = FitMethod::kLs;
+  info.transform.space = space;
+  for (double v = 0; v <= 30; v += 10)
+    for (double h = 0; h <= 90; h += 10) info.lamp_directions.push_back(LightDirection(h, v));
+  info.sample_spacing_deg = SampleSpacingDeg(info.lamp_directions);
+  Model m(Basis(kind, order), info, 48, 32);
+  const double b0 = m.basis().Eval(Vec3{0, 0, 1})[0];
+  for (int k = 0; k < m.basis().size(); ++k) {
+    cv::Mat c(32, 48, CV_32FC3);
+    for (int y = 0; y < 32; ++y)
+      for (int x = 0; x < 48; ++x)
+        for (int ch = 0; ch < 3; ++ch)
+          c.at<cv::Vec3f>(y, x)[ch] =
+              k == 0 ? static_cast<float>((0.4 + 0.2 * std::sin(x / 6.0 + ch) * std::cos(y / 5.0)) / b0)
+                     : static_cast<float>(0.05 * std::sin(x / (4.0 + k) + ch) * std::cos(y / 7.0));
+    m.coefficients().push_back(c);
+  }
+  const std::string path = dir + "/" + BasisKindName(kind) + std::to_string(order) + ".exr";
+  EXPECT_TRUE(SaveModel(path, m, ExrPixelType::kFloat).ok());
+  return path;
+}
+
+// The linear radiance `rig render` writes, as 8-bit sRGB values (float, clamped).
+cv::Mat RenderSrgb(const std::string& model, const std::string& out) {
+  auto r = RunRig("render " + model + " --light 40,15 --out " + out);
+  EXPECT_EQ(r.status, 0) << r.output;
+  auto img = ReadRgbExr(out);
+  EXPECT_TRUE(img.ok());
+  if (!img.ok()) return {};
+  cv::Mat v = img->clone();
+  for (auto it = v.begin<cv::Vec3f>(); it != v.end<cv::Vec3f>(); ++it)
+    for (int k = 0; k < 3; ++k) (*it)[k] = std::clamp(255.0f * SrgbEncode((*it)[k]), 0.0f, 255.0f);
+  return v;
+}
+
+double Psnr8(const cv::Mat& a, const cv::Mat& b) {
+  if (a.empty() || b.empty() || a.size() != b.size()) return 0;
+  return cv::PSNR(a, b, 255.0);
+}
+
+TEST(ExportCommand, EveryFormatRendersAsTheExrModelDoes) {
+  const std::string dir = testing::FreshTempDir("export-cmd");
+  const std::string ptm = WriteModel(dir, BasisKind::kPtm, 2, FitSpace::kSrgb);
+  const std::string hsh = WriteModel(dir, BasisKind::kHsh, 2, FitSpace::kSrgb);
+  struct Case { std::string model, args, out; };
+  for (const Case& c : {Case{ptm, "--format relight", dir + "/ptm-web"},
+                        Case{ptm, "--format ptm", dir + "/m.ptm"},
+                        Case{hsh, "--format relight", dir + "/hsh-web"},
+                        Case{hsh, "--format rti", dir + "/m.rti"}}) {
+    auto r = RunRig("export " + c.model + " " + c.args + " --out " + c.out);
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("rig export: wrote " + c.out));
+    EXPECT_THAT(r.output, HasSubstr("mapped exactly"));
+    EXPECT_THAT(r.output, HasSubstr("as written, read back"));
+    const cv::Mat exported = RenderSrgb(c.out, c.out + "-render.exr");
+    const cv::Mat original = RenderSrgb(c.model, c.out + "-exr-render.exr");
+    const double db = Psnr8(exported, original);
+    std::printf("%s: rig render PSNR against the EXR's render %.2f dB\n", c.out.c_str(), db);
+    EXPECT_GE(db, 45) << r.output;
+  }
+}
+
+TEST(ExportCommand, RefitsPrintThePsnrLostAndLrgbIsAVariant) {
+  const std::string dir = testing::FreshTempDir("export-cmd-refit");
+  const std::string sh = WriteModel(dir, BasisKind::kSh, 2, FitSpace::kSrgb);
+  auto r = RunRig("export " + sh + " --format relight --out " + dir + "/sh-web");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("refitted"));
+  EXPECT_THAT(r.output, HasSubstr("dB PSNR against the source's render over 40 lights"));
+  const std::string ptm = WriteModel(dir, BasisKind::kPtm, 2, FitSpace::kSrgb);
+  r = RunRig("export " + ptm + " --format ptm --ptm-variant lrgb --out " + dir + "/l.ptm");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("PTM_FORMAT_LRGB"));
+  EXPECT_THAT(r.output, HasSubstr("luminance PTM x RGB albedo"));
+  std::ifstream f(dir + "/l.ptm");
+  std::string v, fmt;
+  std::getline(f, v);
+  std::getline(f, fmt);
+  EXPECT_EQ(v, "PTM_1.2");
+  EXPECT_EQ(fmt, "PTM_FORMAT_LRGB");
+}
+
+TEST(ExportCommand, RefusesExistingOutputAndBadFilesNamingThem) {
+  const std::string dir = testing::FreshTempDir("export-cmd-bad");
+  const std::string ptm = WriteModel(dir, BasisKind::kPtm, 2, FitSpace::kSrgb);
+  ASSERT_EQ(RunRig("export " + ptm + " --format ptm --out " + dir + "/a.ptm").status, 0);
+  auto r = RunRig("export " + ptm + " --format ptm --out " + dir + "/a.ptm");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.output, HasSubstr(dir + "/a.ptm"));
+  r = RunRig("export " + ptm + " --format rti --basis ptm --out " + dir + "/b.rti");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.output, HasSubstr("--basis"));
+  // A truncated .ptm: render refuses it, naming the file.
+  fs::resize_file(dir + "/a.ptm", fs::file_size(dir + "/a.ptm") / 2);
+  r = RunRig("render " + dir + "/a.ptm --light 40,15 --out " + dir + "/x.png");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.output, HasSubstr(dir + "/a.ptm"));
+  EXPECT_THAT(r.output, HasSubstr("truncated"));
+}
+
+}  // namespace
+}  // namespace rig
