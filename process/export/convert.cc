@@ -14,12 +14,30 @@ namespace rig {
 namespace {
 
 // 255 · sRGB(ρ): the model's values in relight's units (CV_32FC3, B, G, R).
-cv::Mat EncodedValues(const ReflectanceModel& m, const Vec3& d) {
+cv::Mat EncodedValues(const ReflectanceModel& m, const Vec3& d, double gain = 1) {
   cv::Mat v = m.EvaluateRho(d).clone();
   float* p = v.ptr<float>();
   const size_t n = v.total() * 3;
-  for (size_t i = 0; i < n; ++i) p[i] = 255.0f * SrgbEncode(p[i]);
+  const float g = static_cast<float>(gain);
+  for (size_t i = 0; i < n; ++i) p[i] = 255.0f * SrgbEncode(g * p[i]);
   return v;
+}
+
+// 1, or the scale that puts the 99.5th percentile of ρ over `lights` at white when ρ goes
+// beyond 1 (radiance-map models: ρ relative to the capture lamp, not a display value).
+double DisplayGain(const ReflectanceModel& m, const std::vector<Vec3>& lights) {
+  std::vector<float> sample;
+  const size_t step = std::max<size_t>(1, lights.size() / 12);
+  for (size_t i = 0; i < lights.size(); i += step) {
+    const cv::Mat v = m.EvaluateRho(lights[i]);
+    const float* p = v.ptr<float>();
+    const size_t n = v.total() * 3, stride = std::max<size_t>(1, n / 20000);
+    for (size_t k = 0; k < n; k += stride) sample.push_back(p[k]);
+  }
+  if (sample.empty()) return 1;
+  const size_t q = static_cast<size_t>(0.995 * (sample.size() - 1));
+  std::nth_element(sample.begin(), sample.begin() + q, sample.end());
+  return sample[q] > 1 ? 1.0 / sample[q] : 1.0;
 }
 
 double SquaredError(const cv::Mat& a, const cv::Mat& b) {
@@ -74,7 +92,7 @@ Status CheckTarget(const RelightTarget& t) {
 
 // Least squares of the model's values at `lights` onto the target's rgb terms.
 Result<RelightCoefficients> Refit(const ReflectanceModel& m, RelightTarget t,
-                                  const std::vector<Vec3>& lights) {
+                                  const std::vector<Vec3>& lights, double gain) {
   const Eigen::MatrixXd w = RelightDesign(t.type, t.terms, lights);
   if (lights.size() < static_cast<size_t>(t.terms)) {
     return MakeError(ErrorCode::kInvalidInput, "export",
@@ -93,7 +111,7 @@ Result<RelightCoefficients> Refit(const ReflectanceModel& m, RelightTarget t,
   t.lrgb = false;
   RelightCoefficients c = EmptyLike(t, m.width(), m.height(), false);
   for (size_t i = 0; i < lights.size(); ++i) {
-    const cv::Mat v = EncodedValues(m, lights[i]);
+    const cv::Mat v = EncodedValues(m, lights[i], gain);
     for (int j = 0; j < t.terms; ++j)
       cv::scaleAdd(v, p(j, static_cast<Eigen::Index>(i)), c.planes[j], c.planes[j]);
   }
@@ -131,9 +149,9 @@ RelightCoefficients FactoriseLrgb(const RelightCoefficients& rgb, const std::vec
 }
 
 double PsnrAt(const ReflectanceModel& source, const RelightCoefficients& c,
-              const std::vector<Vec3>& lights) {
+              const std::vector<Vec3>& lights, double gain) {
   double sse = 0;
-  for (const auto& l : lights) sse += SquaredError(EncodedValues(source, l), RenderRelight(c, l));
+  for (const auto& l : lights) sse += SquaredError(EncodedValues(source, l, gain), RenderRelight(c, l));
   return PsnrFromSse(sse, 3.0 * c.width * c.height * static_cast<double>(lights.size()));
 }
 
@@ -147,8 +165,9 @@ void ZeroFlagged(const cv::Mat& valid, RelightCoefficients* c) {
 // The rest of a conversion once rgb coefficients are there: lrgb, the PSNR, the summary.
 Result<Conversion> Finish(const ReflectanceModel& source, RelightCoefficients rgb,
                           const RelightTarget& target, const std::vector<Vec3>& lights,
-                          bool exact, std::string how, double residual) {
+                          bool exact, std::string how, double residual, double gain = 1) {
   Conversion out;
+  out.gain = gain;
   out.exact = exact && !target.lrgb;
   out.map_residual = residual;
   if (target.lrgb) {
@@ -159,7 +178,7 @@ Result<Conversion> Finish(const ReflectanceModel& source, RelightCoefficients rg
     out.coefficients = std::move(rgb);
   }
   ZeroFlagged(source.valid(), &out.coefficients);
-  out.psnr_db = PsnrAt(source, out.coefficients, lights);
+  out.psnr_db = PsnrAt(source, out.coefficients, lights, gain);
   out.lights = static_cast<int>(lights.size());
   out.how = std::move(how);
   return out;
@@ -209,15 +228,18 @@ Result<Conversion> ConvertToRelight(const Model& model, const RelightTarget& tar
       return Finish(*wrapped, std::move(c), target, lights, true, std::move(how), residual);
     }
   }
-  RIG_ASSIGN_OR_RETURN(RelightCoefficients c, Refit(*wrapped, target, lights));
+  const double gain = srgb ? 1.0 : DisplayGain(*wrapped, lights);
+  RIG_ASSIGN_OR_RETURN(RelightCoefficients c, Refit(*wrapped, target, lights, gain));
   c.lights = model.info().lamp_directions;
-  return Finish(*wrapped, std::move(c), target, lights, false,
-                fmt::format("{} order {} ({} fit space) refitted onto relight's {} {} terms by "
-                            "least squares at {} {}",
-                            model.basis().name(), model.basis().order(),
-                            FitSpaceName(model.info().transform.space),
-                            RelightTypeName(target.type), target.terms, lights.size(), lights_name),
-                0);
+  std::string how = fmt::format("{} order {} ({} fit space) refitted onto relight's {} {} terms by "
+                                "least squares at {} {}",
+                                model.basis().name(), model.basis().order(),
+                                FitSpaceName(model.info().transform.space),
+                                RelightTypeName(target.type), target.terms, lights.size(), lights_name);
+  if (gain != 1) {
+    how += fmt::format("; rho scaled by {:.4g} (its 99.5th percentile at those lights is white)", gain);
+  }
+  return Finish(*wrapped, std::move(c), target, lights, false, std::move(how), 0, gain);
 }
 
 Result<Conversion> ConvertToRelight(const ReflectanceModel& model, const RelightTarget& target,
@@ -255,7 +277,7 @@ Result<Conversion> ConvertToRelight(const ReflectanceModel& model, const Relight
     // rgb PTM to lrgb: factorised below, from the coefficients themselves.
     return Finish(model, *rc, target, lights, false, "ptm rgb", 0);
   }
-  RIG_ASSIGN_OR_RETURN(RelightCoefficients c, Refit(model, target, lights));
+  RIG_ASSIGN_OR_RETURN(RelightCoefficients c, Refit(model, target, lights, 1.0));
   c.lights = rc ? rc->lights : std::vector<Vec3>{};
   return Finish(model, std::move(c), target, lights, false,
                 fmt::format("{} refitted onto relight's {} {} terms by least squares at {} lights",
@@ -265,9 +287,9 @@ Result<Conversion> ConvertToRelight(const ReflectanceModel& model, const Relight
 }
 
 double RenderPsnrDb(const ReflectanceModel& a, const ReflectanceModel& b,
-                    const std::vector<Vec3>& directions) {
+                    const std::vector<Vec3>& directions, double gain_a) {
   double sse = 0;
-  for (const auto& d : directions) sse += SquaredError(EncodedValues(a, d), EncodedValues(b, d));
+  for (const auto& d : directions) sse += SquaredError(EncodedValues(a, d, gain_a), EncodedValues(b, d));
   return PsnrFromSse(sse, 3.0 * a.width() * a.height() * static_cast<double>(directions.size()));
 }
 

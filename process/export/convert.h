@@ -28,6 +28,9 @@ struct Conversion {
                            // clamped, not rounded), over `lights`; +inf when identical
   double map_residual = 0; // exact maps: largest |B_relight·M − B_ours| over the hemisphere
   int lights = 0;          // directions of the PSNR (and of the refit)
+  double gain = 1;         // the source's ρ was scaled by this before encoding: 1, except for
+                           // linear/log models whose ρ goes beyond 1 (radiance maps), where the
+                           // 99.5th percentile of ρ at the lights becomes white
   std::string how;         // one line: what was done
 };
 
@@ -41,8 +44,9 @@ Result<Conversion> ConvertToRelight(const Model& model, const RelightTarget& tar
 Result<Conversion> ConvertToRelight(const ReflectanceModel& model, const RelightTarget& target,
                                     std::vector<Vec3> lights = {});
 
-// 8-bit sRGB PSNR of two models' renders over directions (both clamped to 0..255).
+// 8-bit sRGB PSNR of two models' renders over directions (both clamped to 0..255), a's ρ
+// scaled by gain_a first (Conversion::gain).
 double RenderPsnrDb(const ReflectanceModel& a, const ReflectanceModel& b,
-                    const std::vector<Vec3>& directions);
+                    const std::vector<Vec3>& directions, double gain_a = 1);
 
 }  // namespace rig

@@ -3,6 +3,7 @@
 #include "process/export/relight_files.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -52,6 +53,19 @@ void Range(const cv::Mat& plane, int channel, double* lo, double* hi) {
         *hi = std::max(*hi, double(p[x * ch + k]));
       }
   }
+}
+
+// Coefficients a file can hold: finite (a NaN has no byte).
+Status CheckFinite(const RelightCoefficients& c, const std::string& path) {
+  for (size_t j = 0; j < c.planes.size(); ++j) {
+    if (!cv::checkRange(c.planes[j])) {
+      return MakeError(ErrorCode::kInvalidInput, path, "coefficient {} holds a NaN or infinity", j);
+    }
+  }
+  if (c.lrgb && !cv::checkRange(c.albedo)) {
+    return MakeError(ErrorCode::kInvalidInput, path, "the albedo holds a NaN or infinity");
+  }
+  return Ok();
 }
 
 uint8_t ToByte(double v) {
@@ -167,7 +181,8 @@ void QuantileRange(const cv::Mat& plane, int channel, double q, double* lo, doub
   std::vector<float> v;
   v.reserve(n / stride + 1);
   const int ch = plane.channels();
-  const float* p = plane.ptr<float>();  // planes are continuous (created whole)
+  RIG_CHECK(plane.isContinuous(), "relight planes are whole images");
+  const float* p = plane.ptr<float>();
   for (size_t i = 0; i < n; i += stride) v.push_back(p[i * ch + channel]);
   const size_t a = static_cast<size_t>(std::floor(q * (v.size() - 1)));
   const size_t b = static_cast<size_t>(std::ceil((1 - q) * (v.size() - 1)));
@@ -185,6 +200,7 @@ void QuantileRange(const cv::Mat& plane, int channel, double q, double* lo, doub
 Status WriteRelightWeb(const std::string& folder, const RelightCoefficients& c,
                        const WebWriteOptions& o) {
   CheckRelightCoefficients(c);
+  RIG_TRY(CheckFinite(c, folder));
   if (c.lrgb) {
     return MakeError(ErrorCode::kInvalidInput, folder,
                      "colorspace lrgb is not written to the web format here (rgb only)");
@@ -373,6 +389,7 @@ Result<RelightCoefficients> ReadRelightWeb(const std::string& folder) {
 
 Status WritePtm(const std::string& path, const RelightCoefficients& c) {
   CheckRelightCoefficients(c);
+  RIG_TRY(CheckFinite(c, path));
   if (c.type != RelightType::kPtm) {
     return MakeError(ErrorCode::kInvalidInput, path, "a .ptm holds a PTM, not {}",
                      RelightTypeName(c.type));
@@ -512,6 +529,7 @@ Result<RelightCoefficients> ReadPtm(const std::string& path) {
 
 Status WriteRti(const std::string& path, const RelightCoefficients& c) {
   CheckRelightCoefficients(c);
+  RIG_TRY(CheckFinite(c, path));
   if (c.type != RelightType::kHsh) {
     return MakeError(ErrorCode::kInvalidInput, path, "an HSH .rti holds HSH, not {}",
                      RelightTypeName(c.type));

@@ -1,6 +1,7 @@
 // rig export MODEL --format relight|ptm|rti --out PATH: a model in relight's web format or
 // RTIViewer's .ptm/.rti, exactly where the format holds it, refitted (and the PSNR lost
 // printed) where it does not; every file written is read back and its PSNR measured.
+// rig export SESSION --format lp --out DIR: the session's radiance maps as an RTI capture.
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -8,7 +9,16 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <vector>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "capture/plan/pose.h"
 #include "capture/session/render_source.h"
+#include "capture/session/session_store.h"
+#include "process/io/exr_io.h"
+#include "process/model/fit.h"
 #include "process/export/convert.h"
 #include "process/export/load_any.h"
 #include "process/export/relight_files.h"
@@ -41,7 +51,7 @@ Result<RelightTarget> TargetFor(const ExportArgs& a, const std::string& family, 
       return MakeError(ErrorCode::kInvalidInput, "--basis", "'{}' with --format rti (HSH only)", basis);
     basis = "hsh";
   } else if (a.format != "relight") {
-    return MakeError(ErrorCode::kInvalidInput, "--format", "'{}': relight, ptm or rti", a.format);
+    return MakeError(ErrorCode::kInvalidInput, "--format", "'{}': relight, ptm, rti or lp", a.format);
   }
   if (basis.empty()) basis = family.rfind("ptm", 0) == 0 ? "ptm" : "hsh";
   if (basis == "ptm") {
@@ -65,6 +75,79 @@ Result<RelightTarget> TargetFor(const ExportArgs& a, const std::string& family, 
   return t;
 }
 
+// A session's radiance maps as an RTI capture: hdr/<pose>.exr -> OUT/<pose>.png (8-bit sRGB,
+// one exposure for all: the 99.5th percentile of every map's values becomes white) and
+// OUT/dirs.lp with each pose's direction in the object frame (the session's light frame).
+int ExportSessionLp(const ExportArgs& a) {
+  const SessionLayout layout{fs::path(a.source)};
+  std::error_code ec;
+  if (!fs::is_directory(layout.hdr(), ec)) {
+    return ReportError("export", MakeError(ErrorCode::kNotFound, layout.hdr().string(),
+                                           "no radiance maps (--format lp needs a session)"));
+  }
+  LightFrameConfig frame;
+  if (fs::exists(layout.config(), ec)) {
+    auto config = LoadConfigOrError(layout.config().string());
+    if (!config.ok()) return ReportError("export", config.error());
+    frame = config->light_frame;
+  }
+  std::vector<std::pair<std::string, Pose>> poses;
+  for (const auto& e : fs::directory_iterator(layout.hdr(), ec)) {
+    if (e.path().extension() != ".exr") continue;
+    auto pose = ParsePoseName(e.path().stem().string());
+    if (!pose.ok()) return ReportError("export", pose.error().Within(e.path().string()));
+    poses.emplace_back(e.path().string(), *pose);
+  }
+  if (poses.empty()) {
+    return ReportError("export", MakeError(ErrorCode::kNotFound, layout.hdr().string(), "no radiance maps"));
+  }
+  std::sort(poses.begin(), poses.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+  std::vector<cv::Mat> maps;
+  std::vector<float> sample;
+  for (const auto& [path, pose] : poses) {
+    auto m = ReadRgbExr(path);
+    if (!m.ok()) return ReportError("export", m.error());
+    if (!maps.empty() && m->size() != maps[0].size()) {
+      return ReportError("export", MakeError(ErrorCode::kInvalidInput, path, "{}x{}, the first map is {}x{}",
+                                             m->cols, m->rows, maps[0].cols, maps[0].rows));
+    }
+    const float* p = m->ptr<float>();
+    const size_t n = m->total() * 3, stride = std::max<size_t>(1, n / 20000);
+    for (size_t i = 0; i < n; i += stride) sample.push_back(p[i]);
+    maps.push_back(*m);
+  }
+  const size_t q = static_cast<size_t>(0.995 * (sample.size() - 1));
+  std::nth_element(sample.begin(), sample.begin() + q, sample.end());
+  const float white = sample[q] > 0 ? sample[q] : 1.0f;
+  fs::create_directories(a.out, ec);
+  if (ec) return ReportError("export", MakeError(ErrorCode::kIo, a.out, "cannot create: {}", ec.message()));
+  std::vector<std::string> names;
+  std::vector<Vec3> dirs;
+  for (size_t i = 0; i < maps.size(); ++i) {
+    cv::Mat out(maps[i].size(), CV_8UC3);
+    const float* in = maps[i].ptr<float>();
+    uint8_t* o = out.ptr<uint8_t>();
+    for (size_t k = 0; k < maps[i].total() * 3; ++k)
+      o[k] = static_cast<uint8_t>(std::lround(255.0f * SrgbEncode(std::clamp(in[k] / white, 0.0f, 1.0f))));
+    const std::string name = poses[i].second.Name() + ".png";
+    const std::string path = (fs::path(a.out) / name).string();
+    try {
+      if (!cv::imwrite(path, out)) {
+        return ReportError("export", MakeError(ErrorCode::kIo, path, "cannot write"));
+      }
+    } catch (const cv::Exception& e) {
+      return ReportError("export", MakeError(ErrorCode::kIo, path, "cannot write: {}", e.what()));
+    }
+    names.push_back(name);
+    dirs.push_back(LightDirection(poses[i].second.h_deg, poses[i].second.v_deg, frame));
+  }
+  const std::string lp = (fs::path(a.out) / "dirs.lp").string();
+  if (Status st = WriteLp(lp, names, dirs); !st.ok()) return ReportError("export", st.error());
+  std::printf("rig export: wrote %s and %zu images (%dx%d, 8-bit sRGB, radiance %.4g = white) to %s\n",
+              lp.c_str(), names.size(), maps[0].cols, maps[0].rows, white, a.out.c_str());
+  return 0;
+}
+
 }  // namespace
 
 int RunExport(int argc, char** argv) {
@@ -77,7 +160,9 @@ int RunExport(int argc, char** argv) {
   app.add_option("MODEL", a.source,
                  "a model (EXR, relight folder, .ptm, .rti) or a session folder (its model)")
       ->required();
-  app.add_option("--format", a.format, "relight, ptm or rti")->required();
+  app.add_option("--format", a.format,
+                 "relight, ptm or rti; lp: a SESSION's radiance maps as 8-bit sRGB images + dirs.lp")
+      ->required();
   app.add_option("--out", a.out, "the folder (relight) or file (.ptm, .rti) to write; must not exist")
       ->required();
   app.add_option("--ptm-variant", a.variant, "--format ptm: rgb (default) or lrgb");
@@ -98,6 +183,7 @@ int RunExport(int argc, char** argv) {
     return ReportError("export", MakeError(ErrorCode::kInvalidInput, a.out,
                                            "exists; choose another --out (nothing is overwritten)"));
   }
+  if (a.format == "lp") return ExportSessionLp(a);
   auto source = ResolveRenderSource(a.source);
   if (!source.ok()) return ReportError("export", source.error());
   const std::string& path = source->model_path;
@@ -165,16 +251,21 @@ int RunExport(int argc, char** argv) {
   std::vector<Vec3> lights = c.lights.empty() ? HemisphereDirections() : c.lights;
   const auto reread = WrapRelight(std::move(*back), a.out);
   std::printf("  as written, read back: %s PSNR against the source over %zu lights (8-bit sRGB)\n",
-              Db(RenderPsnrDb(*model, *reread, lights)).c_str(), lights.size());
+              Db(RenderPsnrDb(*model, *reread, lights, conversion->gain)).c_str(), lights.size());
   const LightFrameConfig& frame = model->light_frame();
   if (frame.h_sign != 1 || frame.v_sign != 1 || frame.h_offset_deg != 0 || frame.v_offset_deg != 0) {
     std::printf("  note: the format holds object-frame directions; the model's light frame "
                 "(rig angles) is not stored\n");
   }
   const auto e = model->lamp_radiance_rgb();
-  if (model->encoding() == ValueEncoding::kLinear && (e[0] != 1 || e[1] != 1 || e[2] != 1)) {
+  if (model->encoding() == ValueEncoding::kLinear && conversion->gain == 1 &&
+      (e[0] != 1 || e[1] != 1 || e[2] != 1)) {
     std::printf("  note: values are the sRGB encoding of rho (a unit lamp); the capture lamp's "
                 "radiance (%g, %g, %g) is not stored\n", e[0], e[1], e[2]);
+  }
+  if (conversion->gain != 1) {
+    std::printf("  note: rho was scaled by %.4g to fit 8-bit values (relight stores display values)\n",
+                conversion->gain);
   }
   return 0;
 }
