@@ -123,7 +123,7 @@ int main(int argc, char** argv) {
           o.jpeg_quality = q;
           o.mask = mask == "none" ? PcaMaskMode::kNone
                    : mask == "drop" ? PcaMaskMode::kDrop : PcaMaskMode::kHinge;
-          auto score = LeaveOneOut(all, held, [&](const LightSamples& fold, int l, const Vec3& light)
+          auto score = LeaveOneOut(all, held, [&](const LightSamples& fold, int, const Vec3& light)
                                                   -> Result<FoldPrediction> {
             RIG_ASSIGN_OR_RETURN(PcaModel m, FitPca(fold, o));
             std::filesystem::remove_all(tmp);

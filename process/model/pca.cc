@@ -24,6 +24,7 @@
 #include <Eigen/QR>
 #include <Eigen/SVD>
 #include <Eigen/Sparse>
+#include <Eigen/SparseCholesky>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -64,10 +65,12 @@ Eigen::MatrixXd GridWeights(const std::vector<Vec3>& lights, int res) {
   return w;
 }
 
-// The prior's quadratic form over the grid nodes: gᵀ·Q·g.
-Eigen::MatrixXd GridPriorMatrix(int res, GridPrior prior) {
+// The prior's quadratic form over the grid nodes, gᵀ·Q·g, normalised to a mean diagonal of
+// 1, with δ = 1e-7 on the diagonal so that it is positive definite. Sparse and banded (the
+// grid's rows are res apart): its Cholesky factor in the natural order costs n·(2·res)².
+Eigen::SparseMatrix<double> GridPriorMatrix(int res, GridPrior prior) {
   const int n = res * res;
-  // Graph Laplacian of the 4-neighbour grid (Neumann at the borders), sparse.
+  // Graph Laplacian of the 4-neighbour grid (Neumann at the borders).
   std::vector<Eigen::Triplet<double>> t;
   for (int y = 0; y < res; ++y) {
     for (int x = 0; x < res; ++x) {
@@ -82,14 +85,21 @@ Eigen::MatrixXd GridPriorMatrix(int res, GridPrior prior) {
   }
   Eigen::SparseMatrix<double> lap(n, n);
   lap.setFromTriplets(t.begin(), t.end());
-  if (prior == GridPrior::kMembrane) return Eigen::MatrixXd(lap);
-  const Eigen::SparseMatrix<double> bending = lap.transpose() * lap;
-  return Eigen::MatrixXd(bending);
+  Eigen::SparseMatrix<double> q =
+      prior == GridPrior::kMembrane ? lap : Eigen::SparseMatrix<double>(lap.transpose() * lap);
+  double trace = 0;
+  for (int i = 0; i < n; ++i) trace += q.coeff(i, i);
+  q /= std::max(trace / n, 1e-12);
+  Eigen::SparseMatrix<double> id(n, n);
+  id.setIdentity();
+  q += 1e-7 * id;
+  q.makeCompressed();
+  return q;
 }
 
 // The prior's Cholesky factor depends on the grid alone: computed once per (res, prior).
 struct PriorFactor {
-  Eigen::LLT<Eigen::MatrixXd> llt;
+  Eigen::SimplicialLLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> llt;
 };
 const PriorFactor& CachedPriorFactor(int res, GridPrior prior) {
   static std::mutex mutex;
@@ -97,11 +107,8 @@ const PriorFactor& CachedPriorFactor(int res, GridPrior prior) {
   std::lock_guard<std::mutex> lock(mutex);
   auto& slot = cache[{res, static_cast<int>(prior)}];
   if (!slot) {
-    Eigen::MatrixXd q = GridPriorMatrix(res, prior);
-    q /= std::max(q.trace() / static_cast<double>(q.rows()), 1e-12);
-    q.diagonal().array() += 1e-7;
     slot = std::make_unique<PriorFactor>();
-    slot->llt.compute(q);
+    slot->llt.compute(GridPriorMatrix(res, prior));
   }
   return *slot;
 }
@@ -317,8 +324,16 @@ PcaComponents ComponentsOfRows(const std::vector<Vec3>& lights, std::vector<size
   }
   pc.mean = xs.cast<double>().colwise().mean().transpose();
   xs.rowwise() -= pc.mean.cast<float>().transpose();
-  Eigen::MatrixXf gram = Eigen::MatrixXf::Zero(dim, dim);
-  gram.selfadjointView<Eigen::Lower>().rankUpdate(xs.transpose());  // half a GEMM
+  // Half a GEMM (the lower triangle) on each of two fixed halves of the rows, one thread
+  // each, summed in a fixed order: the same bits whatever the machine's load.
+  const Eigen::Index half = m / 2;
+  Eigen::MatrixXf gram = Eigen::MatrixXf::Zero(dim, dim), gram2 = Eigen::MatrixXf::Zero(dim, dim);
+  std::thread second([&] {
+    gram2.selfadjointView<Eigen::Lower>().rankUpdate(xs.bottomRows(m - half).transpose());
+  });
+  if (half > 0) gram.selfadjointView<Eigen::Lower>().rankUpdate(xs.topRows(half).transpose());
+  second.join();
+  gram += gram2;
   gram.triangularView<Eigen::StrictlyUpper>() = gram.transpose();
   pc.covariance = gram.cast<double>() / static_cast<double>(std::max<Eigen::Index>(m - 1, 1));
   Decompose(&pc, count);

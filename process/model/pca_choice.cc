@@ -10,6 +10,7 @@
 
 #include <fmt/format.h>
 
+#include "config/log.h"
 #include "process/io/jpeg_io.h"
 
 namespace rig {
@@ -41,7 +42,7 @@ LightSamples PickPixels(const LightSamples& s, const std::vector<size_t>& pixels
 }  // namespace
 
 cv::Rect PcaChoiceCrop(int width, int height) {
-  const int max_side = 384;
+  const int max_side = 256;
   const int w = std::min(width, max_side), h = std::min(height, max_side);
   return {(width - w) / 2, (height - h) / 2, w, h};
 }
@@ -142,6 +143,8 @@ Result<PcaChoice> ChoosePca(const PcaChoiceInput& in, const PcaComponents& comps
   const LightSamples& crop = in.crop;
   PcaOptions po = o.base;
   po.components = kmax;
+  // What JPEG does to the planes hardly depends on how clipped samples were fitted around.
+  po.mask = PcaMaskMode::kNone;
   std::vector<size_t> crop_index(crop.pixels());
   for (size_t i = 0; i < crop_index.size(); ++i) crop_index[i] = i;
   const PcaBasis& mid_basis = by_grid[by_grid.size() / 2].full_basis;
@@ -270,14 +273,20 @@ Result<PcaAutoFit> FitPcaAuto(const LightSamples& samples, const PcaComponents* 
     RIG_ASSIGN_OR_RETURN(own, ComputePcaComponents(samples, o.base, LargestCandidate(o)));
     given = &own;
   }
+  const auto t1 = std::chrono::steady_clock::now();
   PcaAutoFit out;
   RIG_ASSIGN_OR_RETURN(out.choice, ChoosePca(samples, *given, o));
+  const auto t2 = std::chrono::steady_clock::now();
   const PcaOptions& po = out.choice.options;
   RIG_ASSIGN_OR_RETURN(PcaBasis basis,
                        FitPcaBasis(*given, po.components, po.grid_resolution, po.smoothness));
   RIG_ASSIGN_OR_RETURN(out.model,
                        FitPcaCoefficients(samples, std::move(basis), po, given->subset, &out.stats));
-  out.stats.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const auto t3 = std::chrono::steady_clock::now();
+  out.stats.time_s = std::chrono::duration<double>(t3 - t0).count();
+  auto s = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };
+  Log("process")->debug("pca fit components_s={:.3f} choice_s={:.3f} model_s={:.3f}", s(t0, t1),
+                        s(t1, t2), s(t2, t3));
   return out;
 }
 

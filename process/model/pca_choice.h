@@ -22,7 +22,7 @@ struct PcaChoiceOptions {
   double max_bytes_per_pixel = 3.4;
   double tolerance_db = 0.2;  // the smallest model within this of the best within budget
   int validation_every = 6;   // every n-th light is held out to score the candidates
-  size_t validation_pixels = size_t{1} << 14;
+  size_t validation_pixels = size_t{1} << 13;
   PcaOptions base;            // mask, thresholds, seed, threads, quantile
 };
 
@@ -54,7 +54,7 @@ struct PcaChoiceInput {
   LightSamples sampled;  // the pixels of the components' `subset`, in that order (one row)
   LightSamples crop;     // the pixels of PcaChoiceCrop, row-major, crop width × height
 };
-// The central crop (at most 384 × 384) whose planes measure what JPEG costs and adds.
+// The central crop (at most 256 × 256) whose planes measure what JPEG costs and adds.
 cv::Rect PcaChoiceCrop(int width, int height);
 PcaChoiceInput PcaChoiceInputOf(const LightSamples& samples, const std::vector<size_t>& subset);
 Result<PcaChoice> ChoosePca(const PcaChoiceInput& input, const PcaComponents& components,

@@ -241,7 +241,9 @@ TEST(PcaModel, ClippedSamplesAreFittedAroundNotPulledDown) {
     PcaFitStats stats;
     auto m = FitPcaWith(s, *comps, o, &stats);
     ASSERT_TRUE(m.ok());
-    if (mode == PcaMaskMode::kHinge) EXPECT_GT(stats.refitted_pixels, 0u);
+    if (mode == PcaMaskMode::kHinge) {
+      EXPECT_GT(stats.refitted_pixels, 0u);
+    }
     // Error against the truth where it is below clipping, at every sampled light.
     double sum = 0;
     size_t n = 0;
