@@ -17,7 +17,10 @@ namespace rig {
 struct WebWriteOptions {
   int quality = 95;
   double quantile = 0.0025;  // each plane's range from these quantiles (relight's -Q 0.995)
-  bool ycbcr = true;         // in-JPEG YCbCr 4:4:4 as relight writes rgb planes; false: JCS_RGB
+  // In-JPEG YCbCr 4:4:4, as relight writes (and its C++ reader, Rti::load, decodes: it forces
+  // JCS_YCbCr on every plane). false: JCS_RGB with the Adobe marker, ~2 dB closer at twice the
+  // bytes, for readers that honour the marker (libjpeg's default, browsers, ReadRelightWeb).
+  bool ycbcr = true;
 };
 // The folder is created (it must not hold a model already: info.json present is refused).
 // info.json: width, height, format "jpg", type, colorspace "rgb", lights (when known, 3

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -293,7 +294,7 @@ TEST(ExportWriters, PtmBottomUpRowsAndBiasOutsideByteRangeHoldTheCoefficients) {
   c.height = 3;
   for (int j = 0; j < 6; ++j) c.planes.push_back(cv::Mat(3, 4, CV_32FC3, cv::Scalar::all(0)));
   c.planes[0].at<cv::Vec3f>(0, 0) = cv::Vec3f(300, 310, 320);  // above 255: bias < 0 needed
-  c.planes[0].at<cv::Vec3f>(2, 3) = cv::Vec3f(200, 210, 220);
+  c.planes[0].at<cv::Vec3f>(2, 0) = cv::Vec3f(200, 210, 220);  // bottom-left, B G R
   c.planes[3] = cv::Scalar::all(-125);                        // x², all negative
   const std::string p = Temp("bias.ptm");
   ASSERT_TRUE(WritePtm(p, c).ok());
@@ -301,12 +302,21 @@ TEST(ExportWriters, PtmBottomUpRowsAndBiasOutsideByteRangeHoldTheCoefficients) {
   ASSERT_TRUE(back.ok()) << back.error().ToString();
   for (int j = 0; j < 6; ++j)
     EXPECT_LT(cv::norm(back->planes[j], c.planes[j], cv::NORM_INF), 320.0 / 254 / 2 + 1e-3) << j;
-  // The first pixel of the file is the bottom-left one.
+  // The header's biases hold the coefficients as they are (x²'s is far beyond 255), and the
+  // first pixel of the file is the bottom-left one: its red constant (file coefficient 6) is 200.
   std::ifstream f(p, std::ios::binary);
-  std::string line;
-  for (int i = 0; i < 6; ++i) std::getline(f, line);
-  std::istringstream scales(line);
-  EXPECT_THAT(line, ::testing::Not(HasSubstr("-")));  // scales positive (that was line 5)
+  std::string line, scales, biases;
+  for (int i = 0; i < 4; ++i) std::getline(f, line);
+  std::getline(f, scales);
+  std::getline(f, biases);
+  double scale[6], bias[6];
+  std::istringstream ss(scales), bs(biases);
+  for (int i = 0; i < 6; ++i) ss >> scale[i];
+  for (int i = 0; i < 6; ++i) bs >> bias[i];
+  EXPECT_GT(bias[0], 255);  // x², all -125
+  unsigned char px[6];
+  f.read(reinterpret_cast<char*>(px), 6);
+  EXPECT_NEAR((px[5] - bias[5]) * scale[5], 220.0, 320.0 / 254);  // R of the bottom-left pixel
 }
 
 // ---- refusals ------------------------------------------------------------------------------
