@@ -201,10 +201,6 @@ Status WriteRelightWeb(const std::string& folder, const RelightCoefficients& c,
                        const WebWriteOptions& o) {
   CheckRelightCoefficients(c);
   RIG_TRY(CheckFinite(c, folder));
-  if (c.lrgb) {
-    return MakeError(ErrorCode::kInvalidInput, folder,
-                     "colorspace lrgb is not written to the web format here (rgb only)");
-  }
   if (o.quality < 1 || o.quality > 100) {
     return MakeError(ErrorCode::kInvalidInput, folder, "JPEG quality {} is outside 1..100", o.quality);
   }
@@ -215,22 +211,45 @@ Status WriteRelightWeb(const std::string& folder, const RelightCoefficients& c,
   fs::create_directories(folder, ec);
   if (ec) return MakeError(ErrorCode::kIo, folder, "cannot create: {}", ec.message());
 
-  const int nplanes = 3 * c.terms;
-  std::vector<double> scale(nplanes), bias(nplanes);
-  for (int j = 0; j < c.terms; ++j) {
-    double lo[3], hi[3];
-    for (int k = 0; k < 3; ++k) QuantileRange(c.planes[j], 2 - k, o.quantile, &lo[k], &hi[k]);
-    cv::Mat rgb(c.height, c.width, CV_8UC3);
-    for (int y = 0; y < c.height; ++y) {
-      const float* p = c.planes[j].ptr<float>(y);
-      uint8_t* out = rgb.ptr<uint8_t>(y);
-      for (int x = 0; x < c.width; ++x)
-        for (int k = 0; k < 3; ++k)  // k: R, G, B; the plane is B, G, R
-          out[3 * x + k] = ToByte((p[3 * x + 2 - k] - lo[k]) / (hi[k] - lo[k]) * 255.0);
+  // relight's planes in order, one channel each: rgb: plane 3j+k = coefficient j of channel k
+  // (R, G, B); lrgb: planes 0..2 = the albedo's R, G, B bytes, planes 3..8 = luminance terms.
+  std::vector<cv::Mat> channels;
+  if (!c.lrgb) {
+    for (int j = 0; j < c.terms; ++j) {
+      std::vector<cv::Mat> bgr;
+      cv::split(c.planes[j], bgr);
+      channels.insert(channels.end(), {bgr[2], bgr[1], bgr[0]});
     }
-    for (int k = 0; k < 3; ++k) {
-      scale[3 * j + k] = (hi[k] - lo[k]) / 255.0;
-      bias[3 * j + k] = -lo[k] / (hi[k] - lo[k]);
+  } else {
+    std::vector<cv::Mat> bgr;
+    cv::split(c.albedo, bgr);
+    channels = {bgr[2], bgr[1], bgr[0]};
+    for (int j = 0; j < c.terms; ++j) channels.push_back(c.planes[j]);
+  }
+  const int nplanes = static_cast<int>(channels.size());
+  std::vector<double> scale(nplanes), bias(nplanes);
+  for (int p = 0; p < nplanes; ++p) {
+    if (c.lrgb && p < 3) {  // relight renders the albedo from the bytes as they are
+      scale[p] = 1;
+      bias[p] = 0;
+    } else {
+      double lo, hi;
+      QuantileRange(channels[p], 0, o.quantile, &lo, &hi);
+      scale[p] = (hi - lo) / 255.0;
+      bias[p] = -lo / (hi - lo);
+    }
+  }
+  for (int j = 0; 3 * j < nplanes; ++j) {
+    cv::Mat rgb = cv::Mat::zeros(c.height, c.width, CV_8UC3);  // unused channels stay 0
+    for (int k = 0; k < 3 && 3 * j + k < nplanes; ++k) {
+      const int p = 3 * j + k;
+      const bool raw = c.lrgb && p < 3;
+      const double lo = raw ? 0 : -bias[p] * scale[p] * 255.0, step = raw ? 1 : scale[p];
+      for (int y = 0; y < c.height; ++y) {
+        const float* in = channels[p].ptr<float>(y);
+        uint8_t* out = rgb.ptr<uint8_t>(y);
+        for (int x = 0; x < c.width; ++x) out[3 * x + k] = ToByte((in[x] - lo) / step);
+      }
     }
     const std::string plane = (fs::path(folder) / fmt::format("plane_{}.jpg", j)).string();
     RIG_TRY(WriteJpeg(plane, rgb, o.ycbcr ? JpegColor::kYcbcr : JpegColor::kRgb, o.quality));
@@ -241,7 +260,7 @@ Status WriteRelightWeb(const std::string& folder, const RelightCoefficients& c,
   info["height"] = c.height;
   info["format"] = "jpg";
   info["type"] = RelightTypeName(c.type);
-  info["colorspace"] = "rgb";
+  info["colorspace"] = c.colorspace();
   if (!c.lights.empty()) {
     auto lights = nlohmann::ordered_json::array();
     for (const auto& l : c.lights)
@@ -305,7 +324,17 @@ Result<RelightCoefficients> ReadRelightWeb(const std::string& folder) {
   RIG_ASSIGN_OR_RETURN(std::string type, text("type"));
   RIG_ASSIGN_OR_RETURN(std::string colorspace, text("colorspace"));
   RIG_ASSIGN_OR_RETURN(int64_t nplanes, integer("nplanes"));
-  if (type == "ptm") {
+  if (colorspace == "lrgb" && type == "ptm") {
+    c.type = RelightType::kPtm;
+    c.lrgb = true;
+    if (nplanes != 9) {
+      return MakeError(ErrorCode::kInvalidInput, path,
+                       "nplanes: {} for type ptm, colorspace lrgb, 9 expected", nplanes);
+    }
+  } else if (colorspace != "rgb") {
+    return MakeError(ErrorCode::kInvalidInput, path,
+                     "colorspace: '{}' for type {} is not read here (rgb; lrgb for ptm)", colorspace, type);
+  } else if (type == "ptm") {
     c.type = RelightType::kPtm;
     if (nplanes != 18) {
       return MakeError(ErrorCode::kInvalidInput, path, "nplanes: {} for type ptm, 18 expected",
@@ -320,11 +349,7 @@ Result<RelightCoefficients> ReadRelightWeb(const std::string& folder) {
   } else {
     return MakeError(ErrorCode::kInvalidInput, path, "type: '{}' is not read here (ptm, hsh)", type);
   }
-  if (colorspace != "rgb") {
-    return MakeError(ErrorCode::kInvalidInput, path,
-                     "colorspace: '{}' for type {} is not read here (rgb only)", colorspace, type);
-  }
-  c.terms = static_cast<int>(nplanes / 3);
+  c.terms = c.lrgb ? 6 : static_cast<int>(nplanes / 3);
   if (info.contains("format") && info["format"] != "jpg") {
     return MakeError(ErrorCode::kInvalidInput, path, "format: {} (jpg expected)", info["format"].dump());
   }
@@ -358,7 +383,10 @@ Result<RelightCoefficients> ReadRelightWeb(const std::string& folder) {
       c.lights.push_back({l[i].get<double>(), l[i + 1].get<double>(), l[i + 2].get<double>()});
     }
   }
-  for (int j = 0; j < c.terms; ++j) {
+  for (int j = 0; j < c.terms; ++j)
+    c.planes.emplace_back(c.height, c.width, c.lrgb ? CV_32FC1 : CV_32FC3);
+  if (c.lrgb) c.albedo.create(c.height, c.width, CV_32FC3);
+  for (int j = 0; 3 * j < nplanes; ++j) {
     const std::string plane = (fs::path(folder) / fmt::format("plane_{}.jpg", j)).string();
     RIG_ASSIGN_OR_RETURN(auto reader, JpegReader::Open(plane));
     if (reader->width() != c.width || reader->height() != c.height || reader->channels() != 3) {
@@ -367,20 +395,21 @@ Result<RelightCoefficients> ReadRelightWeb(const std::string& folder) {
     }
     cv::Mat rgb;
     RIG_TRY(reader->Read(c.height, &rgb));
-    cv::Mat out(c.height, c.width, CV_32FC3);
-    float a[3], b[3];  // c = byte · a + b per channel (R, G, B)
-    for (int k = 0; k < 3; ++k) {
-      const double s = scale[3 * j + k], bi = bias[3 * j + k];
-      a[k] = static_cast<float>(s);
-      b[k] = static_cast<float>(-255.0 * bi * s);
+    for (int k = 0; k < 3 && 3 * j + k < nplanes; ++k) {
+      const int p = 3 * j + k;
+      // Material::Plane::dequantize: 255·(byte/255 − bias)·scale; lrgb's albedo: the byte.
+      const bool raw = c.lrgb && p < 3;
+      const float a = raw ? 1.0f : static_cast<float>(scale[p]);
+      const float b = raw ? 0.0f : static_cast<float>(-255.0 * bias[p] * scale[p]);
+      cv::Mat& dst = c.lrgb ? (p < 3 ? c.albedo : c.planes[p - 3]) : c.planes[p / 3];
+      const int ch = dst.channels();
+      const int offset = ch == 1 ? 0 : 2 - (c.lrgb ? p : p % 3);  // B, G, R order
+      for (int y = 0; y < c.height; ++y) {
+        const uint8_t* in = rgb.ptr<uint8_t>(y);
+        float* o = dst.ptr<float>(y);
+        for (int x = 0; x < c.width; ++x) o[ch * x + offset] = in[3 * x + k] * a + b;
+      }
     }
-    for (int y = 0; y < c.height; ++y) {
-      const uint8_t* in = rgb.ptr<uint8_t>(y);
-      float* o = out.ptr<float>(y);
-      for (int x = 0; x < c.width; ++x)
-        for (int k = 0; k < 3; ++k) o[3 * x + 2 - k] = in[3 * x + k] * a[k] + b[k];
-    }
-    c.planes.push_back(out);
   }
   return c;
 }

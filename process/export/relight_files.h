@@ -23,13 +23,14 @@ struct WebWriteOptions {
   bool ycbcr = true;
 };
 // The folder is created (it must not hold a model already: info.json present is refused).
-// info.json: width, height, format "jpg", type, colorspace "rgb", lights (when known, 3
-// decimals), nplanes, quality, colorprofile "sRGB", materials [{scale, bias}]. Plane 3j+c =
-// coefficient j of channel c (R, G, B) in plane_j.jpg; scale/bias per plane as relight's
-// Material::Plane reads them: c = 255·(byte/255 − bias)·scale. rgb only (lrgb is refused).
+// info.json: width, height, format "jpg", type, colorspace, lights (when known, 3 decimals),
+// nplanes, quality, colorprofile "sRGB", materials [{scale, bias}]. rgb: plane 3j+c =
+// coefficient j of channel c (R, G, B) in plane_j.jpg; lrgb (ptm): plane_0 = the albedo's bytes
+// (scale 1, bias 0), planes 3..8 = the luminance terms. Scale/bias per plane as relight's
+// Material::Plane reads them: c = 255·(byte/255 − bias)·scale, range from the quantiles.
 Status WriteRelightWeb(const std::string& folder, const RelightCoefficients& c,
                        const WebWriteOptions& options);
-// Types "ptm" (18 planes) and "hsh" (27 or 12 planes), colorspace "rgb".
+// Types "ptm" (18 planes, rgb; 9 planes, lrgb) and "hsh" (27 or 12 planes, rgb).
 Result<RelightCoefficients> ReadRelightWeb(const std::string& folder);
 // The "type" of a web-format folder's info.json ("" when it cannot be read).
 std::string RelightWebType(const std::string& folder);

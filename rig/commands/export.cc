@@ -64,8 +64,8 @@ Result<RelightTarget> TargetFor(const ExportArgs& a, const std::string& family, 
     return MakeError(ErrorCode::kInvalidInput, "--basis", "'{}': ptm or hsh", basis);
   }
   if (a.variant == "lrgb") {
-    if (a.format != "ptm")
-      return MakeError(ErrorCode::kInvalidInput, "--ptm-variant", "lrgb is for --format ptm");
+    if (t.type != RelightType::kPtm)
+      return MakeError(ErrorCode::kInvalidInput, "--ptm-variant", "lrgb is a PTM variant");
     t.lrgb = true;
   } else if (a.variant != "rgb") {
     return MakeError(ErrorCode::kInvalidInput, "--ptm-variant", "'{}': rgb or lrgb", a.variant);
@@ -165,7 +165,8 @@ int RunExport(int argc, char** argv) {
       ->required();
   app.add_option("--out", a.out, "the folder (relight) or file (.ptm, .rti) to write; must not exist")
       ->required();
-  app.add_option("--ptm-variant", a.variant, "--format ptm: rgb (default) or lrgb");
+  app.add_option("--ptm-variant", a.variant,
+                 "PTM targets: rgb (default) or lrgb (luminance PTM x RGB albedo; relight's lptm)");
   app.add_option("--basis", a.basis, "--format relight: ptm or hsh (default: the model's, else hsh)");
   app.add_option("--hsh-terms", a.hsh_terms, "HSH targets: 9 (default) or 4")
       ->check(CLI::IsMember({4, 9}));
@@ -223,8 +224,9 @@ int RunExport(int argc, char** argv) {
     o.quality = a.quality;
     o.ycbcr = !a.jpeg_rgb;
     written = WriteRelightWeb(a.out, c, o);
+    const int nplanes = c.lrgb ? 9 : 3 * c.terms;
     what = fmt::format("relight web format, {}, {} planes in {} JPEGs q{} ({})", c.Summary(),
-                       3 * c.terms, c.terms, a.quality, a.jpeg_rgb ? "RGB" : "YCbCr 4:4:4");
+                       nplanes, (nplanes + 2) / 3, a.quality, a.jpeg_rgb ? "RGB" : "YCbCr 4:4:4");
     if (written.ok()) back = ReadRelightWeb(a.out);
   } else if (a.format == "ptm") {
     written = WritePtm(a.out, c);

@@ -192,6 +192,17 @@ TEST(ExportRoundTrip, PtmLrgbHoldsAModelWithProportionalChannels) {
   const std::string p = Temp("lrgb.ptm");
   ASSERT_TRUE(WritePtm(p, c->coefficients).ok());
   EXPECT_GE(RoundTripDb(m, p), 45.0);
+  // relight's lptm web format: plane_0 the albedo bytes, planes 3..8 the luminance.
+  const std::string web = Temp("lrgb-web");
+  ASSERT_TRUE(WriteRelightWeb(web, c->coefficients, {}).ok());
+  std::ifstream info_file(web + "/info.json");
+  const auto info = nlohmann::json::parse(info_file);
+  EXPECT_EQ(info["colorspace"], "lrgb");
+  EXPECT_EQ(info["nplanes"], 9);
+  EXPECT_EQ(info["materials"][0]["scale"][0], 1);
+  EXPECT_EQ(info["materials"][0]["bias"][0], 0);
+  EXPECT_FALSE(fs::exists(web + "/plane_3.jpg"));
+  EXPECT_GE(RoundTripDb(m, web), 45.0);
   // A coloured model is factorised with a loss, reported.
   auto coloured = ConvertToRelight(SmoothModel(BasisKind::kPtm, 2), RelightTarget{RelightType::kPtm, 6, true});
   ASSERT_TRUE(coloured.ok());
