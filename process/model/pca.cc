@@ -695,7 +695,7 @@ Status PcaModel::Save(const std::string& folder) const {
       for (size_t i = 0; i < n; ++i) dst[i * 3 + c] = src[i];
     }
     RIG_TRY(WriteJpeg((fs::path(folder) / fmt::format("plane_{}.jpg", j)).string(), rgb,
-                      JpegColor::kRgb, jpeg_quality_));
+                      kPcaPlaneColor, jpeg_quality_));
   }
   return WritePcaInfo(folder, width_, height_, basis_, quant_, lights_, jpeg_quality_);
 }

@@ -18,6 +18,7 @@
 #include <opencv2/core.hpp>
 
 #include "config/result.h"
+#include "process/io/jpeg_io.h"
 #include "process/model/light_direction.h"
 #include "process/model/light_samples.h"
 
@@ -79,6 +80,12 @@ struct PcaFitStats {
   size_t refitted_pixels = 0;  // pixels whose coefficients were solved around masked samples
   double time_s = 0;
 };
+
+// How the coefficient planes are stored: YCbCr 4:4:4, as relight's builder writes every
+// plane file (mrgb included) and as every version of its reader decodes them (some force the
+// YCbCr interpretation whatever the file's markers say), and browsers too. An RGB-space JPEG
+// would keep the three planes' errors apart, but not every relight reader would read it.
+inline constexpr JpegColor kPcaPlaneColor = JpegColor::kYcbcr;
 
 struct PcaComponents;
 

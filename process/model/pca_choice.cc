@@ -163,7 +163,7 @@ Result<PcaChoice> ChoosePca(const PcaChoiceInput& in, const PcaComponents& comps
         planes[3 * j + c].reshape(1, crop.height).copyTo(ch[c]);
         cv::merge(ch, 3, rgb);
       }
-      RIG_ASSIGN_OR_RETURN(auto bytes, EncodeJpeg(rgb, JpegColor::kRgb, o.qualities[qi]));
+      RIG_ASSIGN_OR_RETURN(auto bytes, EncodeJpeg(rgb, kPcaPlaneColor, o.qualities[qi]));
       file_bytes[qi][j] = static_cast<double>(bytes.size()) * pixels /
                           static_cast<double>(crop.pixels());
       RIG_ASSIGN_OR_RETURN(cv::Mat back, DecodeJpeg(bytes, "pca choice"));

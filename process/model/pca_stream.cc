@@ -268,7 +268,7 @@ Result<PcaStreamFit> FitPcaStreaming(const std::vector<LpEntry>& entries,
     for (int j = 0; j < files; ++j) {
       RIG_ASSIGN_OR_RETURN(auto wr, JpegWriter::Open(
                                         (fs::path(out_folder) / fmt::format("plane_{}.jpg", j)).string(),
-                                        w, h, 3, JpegColor::kRgb, po.jpeg_quality));
+                                        w, h, 3, kPcaPlaneColor, po.jpeg_quality));
       writers.push_back(std::move(wr));
     }
     // Samples of pixels [pend_start, ...) not yet solved; plane bytes of pixels

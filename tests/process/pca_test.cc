@@ -151,12 +151,21 @@ TEST(PcaModel, SavedFolderRendersIdenticallyAndHasRelightsFields) {
   EXPECT_TRUE(fs::exists(fs::path(dir) / "plane_0.jpg"));
   EXPECT_TRUE(fs::exists(fs::path(dir) / "plane_1.jpg"));
   EXPECT_FALSE(fs::exists(fs::path(dir) / "plane_2.jpg"));
-  // The planes are RGB JPEGs (Adobe marker with transform 0), not YCbCr.
+  // The planes are YCbCr JPEGs without chroma subsampling (JFIF, no Adobe RGB marker), as
+  // relight writes and every relight reader decodes them.
   std::ifstream jf(fs::path(dir) / "plane_0.jpg", std::ios::binary);
   const std::string bytes((std::istreambuf_iterator<char>(jf)), {});
-  const auto adobe = bytes.find("Adobe");
-  ASSERT_NE(adobe, std::string::npos);
-  EXPECT_EQ(bytes[adobe + 11], 0) << "Adobe transform flag";
+  EXPECT_NE(bytes.find("JFIF"), std::string::npos);
+  EXPECT_EQ(bytes.find("Adobe"), std::string::npos);
+  {
+    const auto sof = bytes.find("\xFF\xC0", 0) != std::string::npos ? bytes.find("\xFF\xC0")
+                                                                   : bytes.find("\xFF\xC2");
+    ASSERT_NE(sof, std::string::npos);
+    // SOF: length(2) precision(1) height(2) width(2) components(1), then per component
+    // id(1) sampling(1) table(1): every sampling factor 1x1 (0x11).
+    ASSERT_EQ(static_cast<uint8_t>(bytes[sof + 9]), 3);
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(static_cast<uint8_t>(bytes[sof + 11 + 3 * c]), 0x11);
+  }
 
   // Relight's published reconstruction (rti-formats.md, "bilinear, mrgb"), written here
   // from the files alone, against our renderer of the loaded model.
