@@ -208,6 +208,30 @@ int RunExport(int argc, char** argv) {
     auto m = LoadAnyModel(path);
     if (!m.ok()) return ReportError("export", m.error());
     model = std::move(*m);
+    // A PCA model is relight's web format already (bilinear, mrgb): written again as it is,
+    // not refitted onto a smaller basis.
+    if (a.format == "relight" && model->family() == "pca-bilinear" && a.basis.empty()) {
+      // Its files, byte for byte (saving again would compress the planes a second time).
+      std::error_code ec;
+      std::filesystem::create_directories(a.out, ec);
+      std::vector<std::string> names = {"info.json"};
+      for (int j = 0; std::filesystem::exists(std::filesystem::path(path) /
+                                             fmt::format("plane_{}.jpg", j));
+           ++j)
+        names.push_back(fmt::format("plane_{}.jpg", j));
+      for (const auto& n : names) {
+        std::filesystem::copy_file(std::filesystem::path(path) / n, std::filesystem::path(a.out) / n,
+                                   std::filesystem::copy_options::overwrite_existing, ec);
+        if (ec) {
+          return ReportError("export", MakeError(ErrorCode::kIo, (std::filesystem::path(a.out) / n).string(),
+                                                 "cannot write: {}", ec.message()));
+        }
+      }
+      std::printf("rig export: wrote %s (relight web format, bilinear mrgb, as the model is "
+                  "stored: nothing refitted, nothing lost)\n  from %s: %s\n",
+                  a.out.c_str(), path.c_str(), model->Describe().c_str());
+      return 0;
+    }
     const RelightCoefficients* rc = RelightCoefficientsOf(*model);
     auto target = TargetFor(a, model->family(), rc ? rc->terms : 0);
     if (!target.ok()) return ReportError("export", target.error());

@@ -85,6 +85,18 @@ TEST(FitLpCommand, DefaultWritesRelightsWebFormatSaysWhatItChoseAndRenders) {
   cv::absdiff(relit, photo, diff);
   EXPECT_LT(cv::mean(diff)[0], 6.0);
 
+  // Exported to relight's web format, the PCA model is its own files, byte for byte.
+  r = RunRig("export " + dir + "/model --format relight --out " + dir + "/exported");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("nothing refitted"));
+  for (const auto& e : fs::directory_iterator(dir + "/model")) {
+    std::ifstream a(e.path(), std::ios::binary), b(dir + "/exported/" + e.path().filename().string(),
+                                                     std::ios::binary);
+    const std::string sa((std::istreambuf_iterator<char>(a)), {}),
+        sb((std::istreambuf_iterator<char>(b)), {});
+    EXPECT_EQ(sa, sb) << e.path().filename();
+  }
+
   // An EXR name for a folder model is refused with the reason; sh still writes an EXR.
   r = RunRig("fit --lp " + lp + " --out " + dir + "/m.exr");
   EXPECT_EQ(r.status, 2) << r.output;
