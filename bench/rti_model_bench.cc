@@ -38,12 +38,14 @@ int main(int argc, char** argv) {
   std::vector<int> ks = {9}, resolutions = {12}, qualities = {95};
   std::vector<std::string> masks = {"hinge"};
   bool automatic = false;
+  int impute = 1;
   double budget = 3.4;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i], v = argv[i + 1];
     if (a == "--lp") lp = v;
     else if (a == "--auto") automatic = v == "1";
     else if (a == "--budget") budget = std::stod(v);
+    else if (a == "--impute") impute = std::stoi(v);
     else if (a == "--every") every = std::stoi(v);
     else if (a == "--k") ks = Ints(v);
     else if (a == "--res") resolutions = Ints(v);
@@ -81,12 +83,19 @@ int main(int argc, char** argv) {
   if (automatic) {
     PcaChoiceOptions co;
     co.max_bytes_per_pixel = budget;
+    co.base.impute_iterations = impute;
     auto full = ComputePcaComponents(all, co.base, LargestCandidate(co));
     if (!full.ok()) return 1;
     std::vector<std::string> chosen;
     auto score = LeaveOneOut(all, held, [&](const LightSamples& fold, int l, const Vec3& light)
                                             -> Result<FoldPrediction> {
-      const PcaComponents comps = PcaComponentsWithout(*full, {l}, LargestCandidate(co));
+      // Imputation reads every light of a pixel: a fold's components are then its own.
+      PcaComponents comps;
+      if (co.base.mask != PcaMaskMode::kNone && co.base.impute_iterations > 0) {
+        RIG_ASSIGN_OR_RETURN(comps, ComputePcaComponents(fold, co.base, LargestCandidate(co)));
+      } else {
+        comps = PcaComponentsWithout(*full, {l}, LargestCandidate(co));
+      }
       RIG_ASSIGN_OR_RETURN(PcaAutoFit fit, FitPcaAuto(fold, &comps, co));
       const auto& c = fit.choice.candidates[fit.choice.chosen];
       chosen.push_back(fmt::format("{}/{}/q{}", c.components, c.resolution, c.quality));

@@ -36,8 +36,7 @@ std::string Protocol(int folds, int lights) {
                          : fmt::format("{} of {} refitted", folds, lights);
 }
 
-// The PCA family with the choice inside every fold; the fold's components are exactly its
-// own (the kept covariance without the held-out light's rows and columns).
+// The PCA family with the choice inside every fold.
 Result<RtiLooRow> PcaRow(const RtiCapture& cap, const PcaChoiceOptions& co,
                          const std::vector<int>& folds, const std::string& setting,
                          const std::string& tmp) {
@@ -45,7 +44,15 @@ Result<RtiLooRow> PcaRow(const RtiCapture& cap, const PcaChoiceOptions& co,
   RIG_ASSIGN_OR_RETURN(PcaComponents full, ComputePcaComponents(cap.samples, co.base, kmax));
   auto score = LeaveOneOut(cap.samples, folds, [&](const LightSamples& fold, int held,
                                                    const Vec3& light) -> Result<FoldPrediction> {
-    const PcaComponents comps = PcaComponentsWithout(full, {held}, kmax);
+    // Imputing censored samples reads every light of a pixel, the held-out one too: the
+    // fold's components are then computed from the fold; otherwise they are exactly the kept
+    // covariance without the held-out light's rows and columns.
+    PcaComponents comps;
+    if (co.base.mask != PcaMaskMode::kNone && co.base.impute_iterations > 0) {
+      RIG_ASSIGN_OR_RETURN(comps, ComputePcaComponents(fold, co.base, kmax));
+    } else {
+      comps = PcaComponentsWithout(full, {held}, kmax);
+    }
     RIG_ASSIGN_OR_RETURN(PcaAutoFit fit, FitPcaAuto(fold, &comps, co));
     std::filesystem::remove_all(tmp);  // no planes of a larger fold's model left behind
     RIG_TRY(fit.model.Save(tmp));

@@ -307,25 +307,12 @@ void PcaBasis::Evaluate(const Vec3& direction, double* out) const {
 
 namespace {
 
-// The components from the samples of the subset's pixels: row(i, subset[i]) points at the
-// i-th sampled pixel's samples.
-PcaComponents ComponentsOfRows(const std::vector<Vec3>& lights, std::vector<size_t> subset,
-                               const std::function<const uint8_t*(size_t, size_t)>& row,
-                               int count) {
-  const int dim = static_cast<int>(lights.size()) * 3;
-  PcaComponents pc;
-  pc.lights = lights;
-  pc.subset = std::move(subset);
-  const Eigen::Index m = static_cast<Eigen::Index>(pc.subset.size());
-  Eigen::MatrixXf xs(m, dim);
-  for (Eigen::Index i = 0; i < m; ++i) {
-    const uint8_t* v = row(static_cast<size_t>(i), pc.subset[static_cast<size_t>(i)]);
-    for (int d = 0; d < dim; ++d) xs(i, d) = v[d];
-  }
-  pc.mean = xs.cast<double>().colwise().mean().transpose();
-  xs.rowwise() -= pc.mean.cast<float>().transpose();
-  // Half a GEMM (the lower triangle) on each of two fixed halves of the rows, one thread
-  // each, summed in a fixed order: the same bits whatever the machine's load.
+// Mean and covariance of the rows (the lower-triangle GEMM on two fixed halves of the rows,
+// one thread each, summed in a fixed order: the same bits whatever the machine's load).
+void MeanAndCovariance(const Eigen::MatrixXf& values, PcaComponents* pc) {
+  const Eigen::Index m = values.rows(), dim = values.cols();
+  pc->mean = values.cast<double>().colwise().mean().transpose();
+  const Eigen::MatrixXf xs = values.rowwise() - pc->mean.cast<float>().transpose();
   const Eigen::Index half = m / 2;
   Eigen::MatrixXf gram = Eigen::MatrixXf::Zero(dim, dim), gram2 = Eigen::MatrixXf::Zero(dim, dim);
   std::thread second([&] {
@@ -335,8 +322,76 @@ PcaComponents ComponentsOfRows(const std::vector<Vec3>& lights, std::vector<size
   second.join();
   gram += gram2;
   gram.triangularView<Eigen::StrictlyUpper>() = gram.transpose();
-  pc.covariance = gram.cast<double>() / static_cast<double>(std::max<Eigen::Index>(m - 1, 1));
+  pc->covariance = gram.cast<double>() / static_cast<double>(std::max<Eigen::Index>(m - 1, 1));
+}
+
+// Censored samples filled in from the components: each sampled pixel's coefficients solved
+// from its usable samples alone, and every clipped sample replaced by the larger of its value
+// and the prediction (a black one by the smaller) — what the sample says: "at least" /
+// "at most" this. Rows without masked samples are untouched.
+void ImputeCensored(const PcaComponents& pc, const PcaOptions& o, Eigen::MatrixXf* values) {
+  const Eigen::Index m = values->rows(), dim = values->cols();
+  const Eigen::Index k = pc.vectors.cols();
+  const Eigen::MatrixXf e = pc.vectors.cast<float>();
+  const Eigen::VectorXf mu = pc.mean.cast<float>();
+  const int black = o.thresholds.black_max, clipped = o.thresholds.clipped_min;
+  auto rows = [&](Eigen::Index lo, Eigen::Index hi) {
+    std::vector<Eigen::Index> masked;
+    for (Eigen::Index i = lo; i < hi; ++i) {
+      masked.clear();
+      for (Eigen::Index d = 0; d < dim; ++d) {
+        const float v = (*values)(i, d);
+        if (v <= black || v >= clipped) masked.push_back(d);
+      }
+      if (masked.empty() || static_cast<Eigen::Index>(masked.size()) > dim - 2 * k) continue;
+      const Eigen::VectorXf y = values->row(i).transpose() - mu;
+      // Components are orthonormal: over the usable samples Gᵤ = I − Σ_masked e_d·e_dᵀ.
+      Eigen::MatrixXf g = Eigen::MatrixXf::Identity(k, k);
+      Eigen::VectorXf rhs = e.transpose() * y;
+      for (Eigen::Index d : masked) {
+        g.noalias() -= e.row(d).transpose() * e.row(d);
+        rhs.noalias() -= e.row(d).transpose() * y(d);
+      }
+      const Eigen::LLT<Eigen::MatrixXf> llt(g);
+      if (llt.info() != Eigen::Success) continue;
+      const Eigen::VectorXf c = llt.solve(rhs);
+      for (Eigen::Index d : masked) {
+        const float v = (*values)(i, d);
+        const float pred = mu(d) + e.row(d).dot(c);
+        (*values)(i, d) = v >= clipped ? std::max(v, pred) : std::min(v, pred);
+      }
+    }
+  };
+  const Eigen::Index half = m / 2;
+  std::thread second(rows, half, m);
+  rows(0, half);
+  second.join();
+}
+
+// The components from the samples of the subset's pixels: row(i, subset[i]) points at the
+// i-th sampled pixel's samples. With a mask, censored samples are imputed and the components
+// computed again (options.impute_iterations times).
+PcaComponents ComponentsOfRows(const std::vector<Vec3>& lights, std::vector<size_t> subset,
+                               const std::function<const uint8_t*(size_t, size_t)>& row,
+                               int count, const PcaOptions& o) {
+  const int dim = static_cast<int>(lights.size()) * 3;
+  PcaComponents pc;
+  pc.lights = lights;
+  pc.subset = std::move(subset);
+  const Eigen::Index m = static_cast<Eigen::Index>(pc.subset.size());
+  Eigen::MatrixXf values(m, dim);
+  for (Eigen::Index i = 0; i < m; ++i) {
+    const uint8_t* v = row(static_cast<size_t>(i), pc.subset[static_cast<size_t>(i)]);
+    for (int d = 0; d < dim; ++d) values(i, d) = v[d];
+  }
+  MeanAndCovariance(values, &pc);
   Decompose(&pc, count);
+  if (o.mask == PcaMaskMode::kNone) return pc;
+  for (int it = 0; it < o.impute_iterations; ++it) {
+    ImputeCensored(pc, o, &values);
+    MeanAndCovariance(values, &pc);
+    Decompose(&pc, count);
+  }
   return pc;
 }
 
@@ -353,11 +408,12 @@ Result<PcaComponents> ComputePcaComponents(const LightSamples& samples, const Pc
   }
   return ComponentsOfRows(
       samples.directions, SamplePixels(pixels, o.basis_pixels, o.seed),
-      [&](size_t, size_t pixel) { return samples.values.data() + pixel * dim; }, count);
+      [&](size_t, size_t pixel) { return samples.values.data() + pixel * dim; }, count, o);
 }
 
 Result<PcaComponents> ComputePcaComponentsOfSample(const LightSamples& sampled,
-                                                   std::vector<size_t> subset, int count) {
+                                                   std::vector<size_t> subset, int count,
+                                                   const PcaOptions& o) {
   const int lights = sampled.lights();
   const size_t dim = static_cast<size_t>(lights) * 3;
   if (lights < 4 || subset.empty() || sampled.pixels() != subset.size() ||
@@ -367,7 +423,7 @@ Result<PcaComponents> ComputePcaComponentsOfSample(const LightSamples& sampled,
   }
   return ComponentsOfRows(
       sampled.directions, std::move(subset),
-      [&](size_t i, size_t) { return sampled.values.data() + i * dim; }, count);
+      [&](size_t i, size_t) { return sampled.values.data() + i * dim; }, count, o);
 }
 
 PcaComponents PcaComponentsWithout(const PcaComponents& full, const std::vector<int>& dropped,

@@ -202,7 +202,7 @@ Result<PcaStreamFit> FitPcaStreaming(const std::vector<LpEntry>& entries,
   const auto t1 = Clock::now();
   const size_t pixels = in.pixels;
   RIG_ASSIGN_OR_RETURN(PcaComponents comps,
-                       ComputePcaComponentsOfSample(in.sampled, subset, LargestCandidate(options)));
+                       ComputePcaComponentsOfSample(in.sampled, subset, LargestCandidate(options), options.base));
   RIG_ASSIGN_OR_RETURN(out.choice, ChoosePca(in, comps, options));
   in.crop = LightSamples();
   const PcaOptions& po = out.choice.options;

@@ -19,7 +19,8 @@ namespace {
 struct FitArgs {
   std::string list, lp, out, report, loo_report, config_path, basis, order_text, method, space,
       pixel_type, log_level, mask = "hinge";
-  int downsample = 1, max_order = -1, components = 0, grid = 0, quality = 0, loo_every = 1;
+  int downsample = 1, max_order = -1, components = 0, grid = 0, quality = 0, loo_every = 1,
+      impute = 0;
   double max_bpp = 3.4;
   size_t stream_mb = 1024;
   bool no_neural = false;
@@ -48,6 +49,10 @@ void AddOptions(CLI::App& app, FitArgs* a) {
       ->check(CLI::Range(1, 100));
   app.add_option("--mask", a->mask,
                  "pca: clipped/black samples: hinge (default: fitted around), drop, none");
+  app.add_option("--impute-censored", a->impute,
+                 "pca: fit the components around clipped/black samples too, N passes (default 0: "
+                 "best against the photographs; more recovers what lies beyond clipping)")
+      ->check(CLI::Range(0, 10));
   app.add_option("--order", a->order_text, "sh/hsh/ptm: an order, or 'auto' (default: config)");
   app.add_option("--max-order", a->max_order, "highest order considered by 'auto'");
   app.add_option("--method", a->method, "quadrature, ls or rls (default: config, else rls)");
@@ -196,6 +201,7 @@ int RunLp(const FitArgs& a, const Config& config) {
   RtiFitRequest req;
   req.family = a.basis.empty() ? "auto" : a.basis;
   req.choice.max_bytes_per_pixel = a.max_bpp;
+  req.choice.base.impute_iterations = a.impute;
   req.components = a.components;
   req.grid_resolution = a.grid;
   req.jpeg_quality = a.quality;

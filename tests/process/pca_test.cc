@@ -276,6 +276,42 @@ TEST(PcaModel, ClippedSamplesAreFittedAroundNotPulledDown) {
   EXPECT_LT(err[1], 4.0);
 }
 
+TEST(PcaModel, ImputedCensoredSamplesRecoverWhatLiesBeyondClipping) {
+  // The rank-3 matte scene at gain 2.5 clips; its components computed from the clipped
+  // values bend; imputing the censored samples from the components and computing them again
+  // brings the model closer to the unclipped truth everywhere, beyond 255 too.
+  Scene scene{48, 40, 0.0, 2.5};
+  scene.srgb = false;
+  auto lights = HemisphereLights();
+  lights.erase(lights.begin(), lights.begin() + 10);
+  const LightSamples s = MakeSamples(scene, lights);
+  PcaOptions o;
+  o.components = 3;
+  o.grid_resolution = 16;
+  double err[2];
+  for (int it : {0, 3}) {
+    o.impute_iterations = it;
+    auto m = FitPca(s, o);
+    ASSERT_TRUE(m.ok());
+    double sum = 0;
+    size_t n = 0;
+    for (size_t l = 0; l < s.directions.size(); ++l) {
+      const cv::Mat pred = m->Render(s.directions[l]);
+      for (int y = 0; y < scene.height; ++y)
+        for (int x = 0; x < scene.width; ++x)
+          for (int c = 0; c < 3; ++c) {
+            const double d = pred.at<cv::Vec3f>(y, x)[2 - c] * 255.0 -
+                             Truth(scene, x, y, s.directions[l], c);
+            sum += d * d;
+            ++n;
+          }
+    }
+    err[it ? 1 : 0] = std::sqrt(sum / static_cast<double>(n));
+  }
+  // Measured: 21.6 -> 15.9 codes RMS (what is left is mostly the 8-bit planes over the wider range).
+  EXPECT_LT(err[1], 0.8 * err[0]) << "without " << err[0] << " with " << err[1];
+}
+
 TEST(PcaChoice, PicksTheSmallestModelWithinToleranceAndSaysWhenNothingFits) {
   const Scene scene{64, 48, 0.0, 1.0};  // matte: three components carry it
   const LightSamples s = MakeSamples(scene, HemisphereLights());
