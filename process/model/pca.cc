@@ -804,6 +804,14 @@ Status WritePcaInfo(const std::string& folder, int width, int height, const PcaB
   }
   fs::rename(tmp, path, ec);
   if (ec) return MakeError(ErrorCode::kIo, path.string(), "cannot write: {}", ec.message());
+  // Planes of an earlier, larger model in the same folder would be counted as its bytes
+  // and confuse a reader that lists files: this model's are plane_0 .. plane_{files-1}.
+  for (int n = (basis.components + 2) / 3;; ++n) {
+    const fs::path stale = fs::path(folder) / fmt::format("plane_{}.jpg", n);
+    if (!fs::exists(stale, ec)) break;
+    fs::remove(stale, ec);
+    if (ec) return MakeError(ErrorCode::kIo, stale.string(), "cannot remove: {}", ec.message());
+  }
   return Ok();
 }
 
