@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <fstream>
 
 #include <fmt/format.h>
@@ -126,7 +127,18 @@ Result<std::vector<RtiLooRow>> HarmonicRows(const RtiCapture& cap, const std::st
   std::vector<RtiLooRow> rows;
   for (size_t i = 0; i < loo.size(); ++i) {
     const auto& r = loo[i];
-    if (!r.supported) continue;
+    if (!r.supported) {
+      // Said, not dropped: the basis cannot be fitted stably to these lights.
+      RtiLooRow row;
+      row.family = r.basis;
+      row.setting = fmt::format("order {} ({} terms), ls, sRGB", r.order, r.terms);
+      row.protocol = "refused: " + r.refusal;
+      row.psnr_mean_mse_db = row.psnr_median_db = row.bytes_per_pixel = row.fit_time_s =
+          std::numeric_limits<double>::quiet_NaN();
+      row.label = fmt::format("rig {} {} terms", r.basis, r.terms);
+      rows.push_back(row);
+      continue;
+    }
     RtiFitRequest req;
     req.family = r.basis;
     req.harmonic.basis = specs[i].basis;
@@ -240,6 +252,15 @@ Result<std::vector<RtiLooRow>> RtiLooTable(const RtiCapture& cap, const RtiLooOp
   return rows;
 }
 
+std::string RtiLooRowLine(const RtiLooRow& r) {
+  if (!std::isfinite(r.psnr_mean_mse_db)) {
+    return fmt::format("  {:<14} {:<40} {}", r.family, r.setting, r.protocol);
+  }
+  return fmt::format("  {:<14} {:<40} {:6.2f} / {:6.2f} dB  {:6.2f} B/px  {:6.2f} s", r.family,
+                     r.setting, r.psnr_mean_mse_db, r.psnr_median_db, r.bytes_per_pixel,
+                     r.fit_time_s);
+}
+
 std::string RtiLooMarkdown(const RtiCapture& cap, const std::vector<RtiLooRow>& rows) {
   std::string md = fmt::format(
       "# Leave-one-out on {}\n\n{} images {}x{}. Every model is refitted without each "
@@ -251,11 +272,12 @@ std::string RtiLooMarkdown(const RtiCapture& cap, const std::vector<RtiLooRow>& 
       "| family | setting | protocol | PSNR mean-MSE / median (dB) | B/px | fit (s) |\n"
       "|---|---|---|---|---|---|\n",
       cap.lp, cap.samples.lights(), cap.samples.width, cap.samples.height);
+  auto num = [](double v) { return std::isfinite(v) ? fmt::format("{:.2f}", v) : std::string("—"); };
   for (const auto& r : rows) {
-    md += fmt::format("| {}{} | {} | {} | {:.2f} / {:.2f} | {:.2f} | {:.2f} |\n",
-                      r.is_default ? "**" : "", r.family + (r.is_default ? "**" : ""), r.setting,
-                      r.protocol, r.psnr_mean_mse_db, r.psnr_median_db, r.bytes_per_pixel,
-                      r.fit_time_s);
+    md += fmt::format("| {}{} | {} | {} | {} / {} | {} | {} |\n", r.is_default ? "**" : "",
+                      r.family + (r.is_default ? "**" : ""), r.setting, r.protocol,
+                      num(r.psnr_mean_mse_db), num(r.psnr_median_db), num(r.bytes_per_pixel),
+                      num(r.fit_time_s));
   }
   return md;
 }

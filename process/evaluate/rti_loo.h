@@ -42,6 +42,9 @@ Result<std::vector<RtiLooRow>> RtiLooTable(
 // relight-cli's figures on the shared icon (../shared/docs/rti-formats.md), all 72 held out.
 std::vector<RtiLooRow> RelightPublishedIconRows();
 
+// One console line of a row (progress while the report runs).
+std::string RtiLooRowLine(const RtiLooRow& row);
+
 std::string RtiLooMarkdown(const RtiCapture& capture, const std::vector<RtiLooRow>& rows);
 
 // Two PNG charts: <prefix>-psnr-bytes.png and <prefix>-psnr-time.png.

@@ -78,7 +78,8 @@ Result<std::unique_ptr<ReflectanceModel>> FitHarmonic(const RtiCapture& cap,
     for (size_t p = 0; p < pixels; ++p) {
       bool ok = true;
       for (int c = 0; c < 3; ++c) {
-        r[p * 3 + (2 - c)] = SrgbDecode(s.value(p, l, c) / 255.0f);
+        const float code = s.value(p, l, c) / 255.0f;
+        r[p * 3 + (2 - c)] = req.linear ? code : SrgbDecode(code);
         ok = ok && s.is_usable(p, l, c);
       }
       v[p] = ok ? 1 : 0;

@@ -42,6 +42,9 @@ struct RtiFitRequest {
   PcaChoiceOptions choice;
   int components = 0, grid_resolution = 0, jpeg_quality = 0;  // "pca": 0 = chosen
   FitOptions harmonic;
+  // sh/hsh/ptm: the images' codes are linear in radiance (÷255), not sRGB. The PCA family
+  // models the codes as they are stored, so it does not need to know.
+  bool linear = false;
 };
 
 struct RtiFitResult {

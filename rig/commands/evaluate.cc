@@ -56,9 +56,7 @@ int RunEvaluate(int argc, char** argv) {
     RtiLooOptions lo;
     lo.every = lp_every;
     auto rows = WriteRtiLooReport(*capture, lo, md, [](const RtiLooRow& r) {
-      std::printf("  %-14s %-40s %6.2f / %6.2f dB  %6.2f B/px  %6.2f s\n", r.family.c_str(),
-                  r.setting.c_str(), r.psnr_mean_mse_db, r.psnr_median_db, r.bytes_per_pixel,
-                  r.fit_time_s);
+      std::printf("%s\n", RtiLooRowLine(r).c_str());
       std::fflush(stdout);
     });
     if (!rows.ok()) return ReportError("evaluate", rows.error());

@@ -23,7 +23,7 @@ struct FitArgs {
       impute = 0;
   double max_bpp = 3.4;
   size_t stream_mb = 1024;
-  bool no_neural = false;
+  bool no_neural = false, linear = false;
 };
 
 void AddOptions(CLI::App& app, FitArgs* a) {
@@ -66,6 +66,8 @@ void AddOptions(CLI::App& app, FitArgs* a) {
                  "with --loo-report: hold out every n-th image only (default 1: all)")
       ->check(CLI::Range(1, 1000));
   app.add_flag("--loo-no-neural", a->no_neural, "with --loo-report: leave the neural family out");
+  app.add_flag("--linear", a->linear,
+               "with --lp, sh/hsh/ptm: the images are linear 8-bit, not sRGB");
   app.add_option("--downsample", a->downsample, "with --lp: shrink images by this factor first")
       ->check(CLI::Range(1, 64));
   app.add_option("--stream-above-mb", a->stream_mb,
@@ -76,9 +78,7 @@ void AddOptions(CLI::App& app, FitArgs* a) {
 }
 
 void PrintLooRow(const RtiLooRow& r) {
-  std::printf("  %-14s %-40s %6.2f / %6.2f dB  %6.2f B/px  %6.2f s\n", r.family.c_str(),
-              r.setting.c_str(), r.psnr_mean_mse_db, r.psnr_median_db, r.bytes_per_pixel,
-              r.fit_time_s);
+  std::printf("%s\n", RtiLooRowLine(r).c_str());
   std::fflush(stdout);
 }
 
@@ -202,6 +202,7 @@ int RunLp(const FitArgs& a, const Config& config) {
   req.family = a.basis.empty() ? "auto" : a.basis;
   req.choice.max_bytes_per_pixel = a.max_bpp;
   req.choice.base.impute_iterations = a.impute;
+  req.linear = a.linear;
   req.components = a.components;
   req.grid_resolution = a.grid;
   req.jpeg_quality = a.quality;

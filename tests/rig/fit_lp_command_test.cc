@@ -162,6 +162,38 @@ TEST(FitLpCommand, BadLightFilesAndImagesAreRefusedNamingTheLine) {
   fs::remove_all(dir);
 }
 
+TEST(EvaluateLpCommand, EveryFamilyIsRefittedPerHeldOutImageAndCharted) {
+  const std::string dir = testing::FreshTempDir("evaluate-lp");
+  const std::string lp = WriteCapture(dir, 32, 24);
+  auto r = RunRig("evaluate --lp " + lp + " --lp-every 12 --out " + dir + "/report");
+  ASSERT_EQ(r.status, 0) << r.output;
+  std::ifstream f(dir + "/report/rti-loo.md");
+  const std::string md((std::istreambuf_iterator<char>(f)), {});
+  for (const char* family : {"**pca-bilinear**", "| ptm |", "| hsh |", "| sh |", "| neural |"})
+    EXPECT_THAT(md, HasSubstr(family)) << md;
+  // A basis these 36 lights cannot hold (SH order 4, 25 terms, least squares) is listed as
+  // refused, with the reason, not dropped.
+  EXPECT_THAT(md, HasSubstr("refused:"));
+  EXPECT_THAT(md, HasSubstr("3 of 36 refitted"));
+  // Not the shared icon: relight's published figures for it are not drawn beside these.
+  EXPECT_THAT(md, ::testing::Not(HasSubstr("published")));
+  EXPECT_TRUE(fs::exists(dir + "/report/rti-loo-psnr-bytes.png"));
+  EXPECT_TRUE(fs::exists(dir + "/report/rti-loo-psnr-time.png"));
+  // The default's PSNR is a real figure: a smooth synthetic scene is far above 25 dB.
+  const auto at = md.find("| **pca-bilinear** |");
+  ASSERT_NE(at, std::string::npos);
+  const std::string row = md.substr(at, md.find('\n', at) - at);
+  const auto db = row.find(" / ");
+  ASSERT_NE(db, std::string::npos);
+  const double psnr = std::stod(row.substr(row.rfind('|', db) + 1));
+  EXPECT_GT(psnr, 25.0) << row;
+  EXPECT_LT(psnr, 80.0) << row;
+  // A second run into the same folder is refused: nothing is overwritten.
+  r = RunRig("evaluate --lp " + lp + " --lp-every 12 --out " + dir + "/report");
+  EXPECT_EQ(r.status, 2) << r.output;
+  fs::remove_all(dir);
+}
+
 TEST(FitLpCommand, RealCaptureDefaultFitsWithinTheByteBudget) {
   const std::string lp = testing::SharedDir() + "/data/rti/neuralrti-example/dirs.lp";
   if (!fs::exists(lp)) GTEST_SKIP() << lp << " is not here";
