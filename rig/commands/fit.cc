@@ -22,7 +22,7 @@ struct FitArgs {
   int downsample = 1, max_order = -1, components = 0, grid = 0, quality = 0, loo_every = 1,
       impute = 0;
   double max_bpp = 3.4;
-  size_t stream_mb = 1024;
+  long stream_mb = -1;  // -1: the default of the path (--list 1024, --lp 256); 0: always
   bool no_neural = false, linear = false;
 };
 
@@ -71,9 +71,11 @@ void AddOptions(CLI::App& app, FitArgs* a) {
   app.add_option("--downsample", a->downsample, "with --lp: shrink images by this factor first")
       ->check(CLI::Range(1, 64));
   app.add_option("--stream-above-mb", a->stream_mb,
-                 "stream row bands when the samples exceed this many MB (default 1024): "
-                 "--list, and --lp with auto/pca (two passes over the JPEGs, the same model; "
-                 "--loo-report is refused above it)");
+                 "stream row bands when the samples exceed this many MB: --list (default "
+                 "1024), and --lp with auto/pca (default 256: two passes over the JPEGs give "
+                 "the same model byte for byte, faster and in a fraction of the memory; "
+                 "--loo-report is refused above it)")
+      ->check(CLI::Range(0L, 1L << 30));
   AddLogLevelOption(app, &a->log_level);
 }
 
@@ -118,7 +120,7 @@ PcaChoiceOptions ChoiceOptionsOf(const RtiFitRequest& req) {
 // auto/pca on a capture whose samples exceed --stream-above-mb: FitPcaStreaming.
 int RunLpStreamed(const FitArgs& a, const std::vector<LpEntry>& entries, const RtiFitRequest& req,
                   uint64_t sample_bytes) {
-  std::printf("rig fit: %s: samples %.0f MB > --stream-above-mb %zu: streaming bands of rows\n",
+  std::printf("rig fit: %s: samples %.0f MB > --stream-above-mb %ld: streaming bands of rows\n",
               a.lp.c_str(), static_cast<double>(sample_bytes) / (1 << 20), a.stream_mb);
   std::fflush(stdout);
   PcaStreamOptions so;
@@ -151,7 +153,7 @@ int RunLpStreamed(const FitArgs& a, const std::vector<LpEntry>& entries, const R
   return 0;
 }
 
-int RunLp(const FitArgs& a, const Config& config) {
+int RunLp(FitArgs a, const Config& config) {
   // Above the bound, auto/pca stream; --loo-report refits in memory and is refused.
   const std::string family = a.basis.empty() ? "auto" : a.basis;
   const bool folder_family = family == "auto" || family == "pca";
@@ -165,6 +167,9 @@ int RunLp(const FitArgs& a, const Config& config) {
     auto bytes = RtiSampleBytes(entries, a.downsample);
     if (bytes.ok()) sample_bytes = *bytes;
   }
+  // In memory the samples are held next to the decoded images (about twice their size);
+  // streaming is byte-identical and was faster from 6 MP up (docs/model.md).
+  if (a.stream_mb < 0) a.stream_mb = 256;
   const bool above = sample_bytes > static_cast<uint64_t>(a.stream_mb) * 1024 * 1024;
   if (above && !a.loo_report.empty()) {
     return ReportError(
@@ -286,7 +291,7 @@ int RunFit(int argc, char** argv) {
   req.options = *options;
   req.pixel_type = config.process.model_pixel_type == "half" ? ExrPixelType::kHalf
                                                              : ExrPixelType::kFloat;
-  req.stream_above_bytes = a.stream_mb * 1024 * 1024;
+  req.stream_above_bytes = static_cast<size_t>(a.stream_mb < 0 ? 1024 : a.stream_mb) * 1024 * 1024;
   auto fit = FitMaps(req);
   if (!fit.ok()) return ReportError("fit", fit.error());
   if (!a.report.empty() && !fit->report.empty()) {
