@@ -27,6 +27,10 @@ find_package(ZLIB REQUIRED)
 find_package(JPEG REQUIRED)
 find_package(BLAS)
 pkg_check_modules(TOMLPP REQUIRED IMPORTED_TARGET tomlplusplus)
+# Camera RAW files (the thread-safe build: brackets decode in parallel); DNG writing for the
+# simulated camera.
+pkg_check_modules(LIBRAW REQUIRED IMPORTED_TARGET libraw_r)
+find_package(TIFF REQUIRED)
 
 if(RIG_BUILD_TESTS)
   find_package(GTest REQUIRED)

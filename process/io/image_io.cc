@@ -1,5 +1,6 @@
 // Decoding camera files into BGR frames (in parallel over a bracket) and reading bracket lists.
 #include "process/io/image_io.h"
+#include "process/io/raw_io.h"
 
 #include <malloc.h>
 
@@ -111,6 +112,9 @@ Result<cv::Mat> DecodeImage(const std::string& path) {
 }
 
 Result<cv::Mat> DecodeImageBytes(const std::vector<uchar>& bytes, const std::string& path) {
+  // A DNG is a TIFF: decoded as one it would give the undemosaiced mosaic. RAW goes through
+  // LibRaw, by name (the camera's own extension), to linear 16-bit values.
+  if (IsRawPath(path)) return DecodeRawBytes(std::span<const uint8_t>(bytes.data(), bytes.size()), path);
   const bool jpeg = bytes.size() >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF;
   const bool png = bytes.size() >= 8 && std::memcmp(bytes.data(), "\x89PNG\r\n\x1a\n", 8) == 0;
   // libjpeg decodes a truncated file with a warning and grey rows at the bottom; libpng may

@@ -5,6 +5,7 @@
 #include "config/log.h"
 #include "process/hdr/hdr.h"
 #include "process/io/image_io.h"
+#include "process/io/raw_io.h"
 #include "rig/commands/command.h"
 
 namespace rig {
@@ -74,6 +75,20 @@ int RunHdr(int argc, char** argv) {
   if (auto s = ValidateBracket(*frames); !s.ok()) return ReportError("hdr", s.error().Within(list));
   const double decode_s = since(t0);
   const int levels = frames->front().image.depth() == CV_16U ? 65536 : 256;
+  // RAW frames are linear once decoded: no response to recover. A bracket mixing RAW with
+  // camera-rendered frames has no one response.
+  const size_t raw_frames = std::count_if(frames->begin(), frames->end(),
+                                          [](const LdrFrame& f) { return IsRawPath(f.source); });
+  if (raw_frames > 0 && raw_frames < frames->size()) {
+    std::fprintf(stderr, "rig hdr: %s: %zu of %zu frames are RAW: a bracket is all RAW or none\n",
+                 list.c_str(), raw_frames, frames->size());
+    return 2;
+  }
+  if (raw_frames > 0 && !response_in.empty()) {
+    std::fprintf(stderr, "rig hdr: %s: RAW frames are linear; --response does not apply\n", list.c_str());
+    return 2;
+  }
+  if (raw_frames > 0) linear = true;
 
   t0 = Clock::now();
   ResponseCurve response;
