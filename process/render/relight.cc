@@ -10,6 +10,7 @@
 #include <system_error>
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
 #include "config/log.h"
@@ -26,6 +27,7 @@ namespace {
 // (the model is read through ReflectanceModel only: every family renders alike)
 
 Vec3 DirectionOf(const ReflectanceModel& model, const RelightLamp& l) {
+  if (l.direction) return *l.direction;
   return LightDirection(l.h_deg, l.v_deg, model.light_frame());
 }
 
@@ -34,9 +36,9 @@ std::string OutsideRegion(const ReflectanceModel& model, const RelightLamp& l) {
   const RegionCheck region = model.CheckRegion(DirectionOf(model, l));
   if (region.inside) return {};
   return fmt::format(
-      "lamp {},{} is {:.1f} deg from the nearest sampled lamp (sampling spacing {:.1f} deg): "
+      "lamp {} is {:.1f} deg from the nearest sampled lamp (sampling spacing {:.1f} deg): "
       "outside the sampled region",
-      l.h_deg, l.v_deg, region.nearest_deg, region.spacing_deg);
+      LampName(l), region.nearest_deg, region.spacing_deg);
 }
 
 // The sum over lamps of ρ(direction) · capture lamp radiance · colour · intensity.
@@ -78,7 +80,85 @@ Status WritePicture(const std::string& path, const cv::Mat& bgr8) {
 const std::map<std::string, std::string> kRadianceHeader = {
     {"rig.render", "relit radiance (linear)"}};
 
+// The mapping of `reference` (Ward curve or linear scale) fixed into `o`.
+Status FixMapping(const cv::Mat& reference, ToneMapOptions* o) {
+  if (o->method == ToneMapMethod::kWard) {
+    if (reference.empty() || reference.type() != CV_32FC3) {
+      return MakeError(ErrorCode::kInvalidInput, "display reference", "must be CV_32FC3 radiance");
+    }
+    o->ward_fixed = std::make_shared<const WardMapping>(ComputeWardMappingForImage(reference, *o));
+    return Ok();
+  }
+  if (o->method == ToneMapMethod::kLinear) {
+    ToneMapReport report;
+    ToneMapOptions linear = *o;
+    linear.linear_scale = 0;
+    RIG_TRY(ToneMap(reference, linear, &report));
+    o->linear_scale = report.linear_scale;
+    return Ok();
+  }
+  return MakeError(ErrorCode::kInvalidInput, "--tonemap",
+                   "a fixed display takes ward or linear ({} adapts to every picture)",
+                   ToneMapMethodName(o->method));
+}
+
 }  // namespace
+
+Vec3 AzimuthElevationDirection(double azimuth_deg, double elevation_deg) {
+  const double a = azimuth_deg * M_PI / 180, e = elevation_deg * M_PI / 180;
+  return {std::cos(e) * std::cos(a), std::cos(e) * std::sin(a), std::sin(e)};
+}
+
+std::string LampName(const RelightLamp& l) {
+  if (l.direction) {
+    return fmt::format("dir={:.4g},{:.4g},{:.4g}", (*l.direction)[0], (*l.direction)[1],
+                       (*l.direction)[2]);
+  }
+  return fmt::format("{},{}", l.h_deg, l.v_deg);
+}
+
+cv::Mat FillFlaggedPixels(const cv::Mat& radiance, const cv::Mat& valid, size_t* filled) {
+  *filled = 0;
+  if (valid.empty() || cv::countNonZero(valid) == static_cast<int>(valid.total())) return radiance;
+  RIG_CHECK(valid.size() == radiance.size() && valid.type() == CV_8U, "valid mask shape");
+  cv::Mat known;
+  valid.convertTo(known, CV_32F, 1.0 / 255);
+  cv::threshold(known, known, 0, 1, cv::THRESH_BINARY);
+  cv::Mat value = radiance.clone();
+  {
+    cv::Mat known3;
+    cv::merge(std::vector<cv::Mat>{known, known, known}, known3);
+    value = value.mul(known3);
+  }
+  *filled = valid.total() - static_cast<size_t>(cv::countNonZero(valid));
+  if (cv::countNonZero(valid) == 0) return value;  // nothing to fill from
+  const int max_passes = std::max(radiance.rows, radiance.cols);
+  for (int pass = 0; pass < max_passes; ++pass) {
+    cv::Mat sum_value, sum_known;
+    cv::boxFilter(value, sum_value, CV_32F, cv::Size(3, 3), cv::Point(-1, -1), false,
+                  cv::BORDER_REPLICATE);
+    cv::boxFilter(known, sum_known, CV_32F, cv::Size(3, 3), cv::Point(-1, -1), false,
+                  cv::BORDER_REPLICATE);
+    bool left = false;
+    for (int y = 0; y < value.rows; ++y) {
+      float* k = known.ptr<float>(y);
+      const float* sk = sum_known.ptr<float>(y);
+      cv::Vec3f* v = value.ptr<cv::Vec3f>(y);
+      const cv::Vec3f* sv = sum_value.ptr<cv::Vec3f>(y);
+      for (int x = 0; x < value.cols; ++x) {
+        if (k[x] > 0) continue;
+        if (sk[x] > 0) {
+          v[x] = sv[x] / sk[x];
+          k[x] = 1;
+        } else {
+          left = true;
+        }
+      }
+    }
+    if (!left) break;
+  }
+  return value;
+}
 
 std::vector<RelightLamp> SampleLampPath(const std::vector<RelightLamp>& path, int frames) {
   std::vector<double> cum = {0};
@@ -113,18 +193,36 @@ Result<RenderOutput> Relight(const ReflectanceModel& model, const RelightRequest
   RenderOutput output;
   output.tonemap = request.tonemap;
   output.sweep = request.sweep;
+  output.valid = model.valid();
   if (request.sweep.empty()) {
     output.radiance.push_back(SumOfLamps(model, request.lamps));
+  } else {
+    for (const auto& l : request.sweep) {
+      std::vector<RelightLamp> set = request.lamps;
+      set.push_back(l);
+      output.radiance.push_back(SumOfLamps(model, set));
+    }
+  }
+  if (request.display != RenderDisplay::kToneMap && request.display != RenderDisplay::kEncoded) {
     return output;
   }
-  for (const auto& l : request.sweep) {
-    std::vector<RelightLamp> set = request.lamps;
-    set.push_back(l);
-    output.radiance.push_back(SumOfLamps(model, set));
+  if (request.display_ev) {
+    output.tonemap.method = ToneMapMethod::kLinear;
+    output.tonemap.linear_scale = std::exp2(*request.display_ev);
+    output.display_note = fmt::format("fixed display: pixel = radiance x 2^{:g}", *request.display_ev);
+    return output;
   }
+  if (request.display == RenderDisplay::kEncoded) return output;  // intensity already shows
   const ToneMapMethod method = request.tonemap.method;
-  if (request.display == RenderDisplay::kToneMap &&
-      (method == ToneMapMethod::kWard || method == ToneMapMethod::kLinear)) {
+  const bool fixable = method == ToneMapMethod::kWard || method == ToneMapMethod::kLinear;
+  if (!request.display_reference.empty()) {
+    RIG_TRY(FixMapping(request.display_reference, &output.tonemap));
+    output.display_note = fmt::format("fixed display: the {} mapping of the reference render",
+                                      ToneMapMethodName(method));
+    return output;
+  }
+  if (!request.sweep.empty()) {
+    if (!fixable) return output;
     // One mapping for the whole sweep: the linear scale Ward/linear settle on for the
     // brightest frame, applied to every frame.
     size_t brightest = 0;
@@ -139,6 +237,17 @@ Result<RenderOutput> Relight(const ReflectanceModel& model, const RelightRequest
     RIG_TRY(ToneMap(output.radiance[brightest], linear, &report));
     output.tonemap = linear;
     output.tonemap.linear_scale = report.linear_scale;
+    output.display_note = "one linear scale for the sweep (its brightest frame's)";
+    return output;
+  }
+  bool unit = true;
+  for (const auto& l : request.lamps) unit = unit && l.intensity == 1;
+  if (fixable && !unit) {
+    // The display the same lamps at intensity 1 get: intensity changes the picture.
+    std::vector<RelightLamp> ones = request.lamps;
+    for (auto& l : ones) l.intensity = 1;
+    RIG_TRY(FixMapping(SumOfLamps(model, ones), &output.tonemap));
+    output.display_note = "mapped as the same lamps at intensity 1";
   }
   return output;
 }
@@ -149,12 +258,14 @@ Result<cv::Mat> RenderPicture(const cv::Mat& radiance, const RelightRequest& req
     return RenderExposure(radiance, request.exposure_s, request.log_exposure);
   }
   if (request.display == RenderDisplay::kEncoded) {
+    const float scale = request.display_ev ? static_cast<float>(std::exp2(*request.display_ev)) : 1.0f;
     cv::Mat out(radiance.size(), CV_8UC3);
     for (int y = 0; y < radiance.rows; ++y) {
       const float* r = radiance.ptr<float>(y);
       uint8_t* o = out.ptr<uint8_t>(y);
       for (int x = 0; x < radiance.cols * 3; ++x)
-        o[x] = static_cast<uint8_t>(std::clamp(std::nearbyint(SrgbEncode(r[x]) * 255.0f), 0.0f, 255.0f));
+        o[x] = static_cast<uint8_t>(
+            std::clamp(std::nearbyint(SrgbEncode(scale * r[x]) * 255.0f), 0.0f, 255.0f));
     }
     return out;
   }
@@ -190,7 +301,8 @@ Result<RenderFiles> WriteRender(const RenderOutput& output, const RelightRequest
     if (to_exr) {
       RIG_TRY(WriteRgbExr(out, output.radiance[0], kRadianceHeader));
     } else {
-      RIG_ASSIGN_OR_RETURN(cv::Mat pic, RenderPicture(output.radiance[0], request, output.tonemap));
+      const cv::Mat filled = FillFlaggedPixels(output.radiance[0], output.valid, &files.filled_pixels);
+      RIG_ASSIGN_OR_RETURN(cv::Mat pic, RenderPicture(filled, request, output.tonemap));
       RIG_TRY(WritePicture(out, pic));
     }
     files.frames = 1;
@@ -214,7 +326,8 @@ Result<RenderFiles> WriteRender(const RenderOutput& output, const RelightRequest
     if (to_exr) {
       st = WriteRgbExr(frame.string(), output.radiance[i], kRadianceHeader);
     } else {
-      auto pic = RenderPicture(output.radiance[i], request, output.tonemap);
+      const cv::Mat filled = FillFlaggedPixels(output.radiance[i], output.valid, &files.filled_pixels);
+      auto pic = RenderPicture(filled, request, output.tonemap);
       if (!pic.ok()) return pic.error().Within(frame.string());
       st = WritePicture(frame.string(), *pic);
       if (st.ok() && files.video) {

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <limits>
 #include <numbers>
+#include <random>
 
 #include <opencv2/imgproc.hpp>
 #include <opencv2/photo.hpp>
@@ -26,11 +27,26 @@ constexpr int kLutShift = 13;
 constexpr uint32_t kLutFracMask = (1u << kLutShift) - 1;
 constexpr float kLutFracScale = 1.0f / static_cast<float>(1u << kLutShift);
 
-// One foveal sample per degree: the field of view in samples across, at least 2 each way
-// and never more than the image has.
-cv::Size FovealSize(int cols, int rows, double field_of_view_deg) {
+// The paper's grid: one foveal sample per degree of the horizontal field of view, at least 2
+// each way and never more than the image has.
+cv::Size PaperFovealSize(int cols, int rows, double field_of_view_deg) {
   const int fw = std::max(2, static_cast<int>(std::lround(field_of_view_deg)));
   const int fh = std::max(2, static_cast<int>(std::lround(field_of_view_deg * rows / cols)));
+  return cv::Size(std::min(fw, cols), std::min(fh, rows));
+}
+
+// pcond's grid (getahead, getfovimg): the default view is a perspective one whose larger side
+// spans the field of view; samples across a side = its image-plane width 2·tan(half angle)
+// divided by one degree in radians, plus 0.5, truncated.
+cv::Size PcondFovealSize(int cols, int rows, double field_of_view_deg) {
+  const double one_deg = std::numbers::pi / 180;
+  const double span = 2 * std::tan(field_of_view_deg * one_deg / 2);  // of the larger side
+  const int longer = std::max(cols, rows), shorter = std::min(cols, rows);
+  const int n_long = std::max(2, static_cast<int>(span / one_deg + 0.5));
+  const int n_short =
+      std::max(2, static_cast<int>(span * shorter / longer / one_deg + 0.5));
+  const int fw = cols >= rows ? n_long : n_short;
+  const int fh = cols >= rows ? n_short : n_long;
   return cv::Size(std::min(fw, cols), std::min(fh, rows));
 }
 
@@ -55,6 +71,15 @@ Status CheckOptions(const ToneMapOptions& o) {
   };
   if (!(o.field_of_view_deg > 0 && o.field_of_view_deg < 360)) {
     return bad(fmt::format("field_of_view_deg must be in (0, 360), got {}", o.field_of_view_deg));
+  }
+  if (o.ward_variant == WardVariant::kPcond && !(o.field_of_view_deg < 179)) {
+    return bad(fmt::format("field_of_view_deg must be under 179 for pcond's perspective view, "
+                           "got {} (the paper variant takes up to 360)",
+                           o.field_of_view_deg));
+  }
+  if (o.ward_point_samples_per_foveal < 0 || o.ward_point_samples_per_foveal > 1000) {
+    return bad(fmt::format("ward_point_samples_per_foveal must be in [0, 1000], got {}",
+                           o.ward_point_samples_per_foveal));
   }
   if (!(o.display_min_cd_m2 > 0 && o.display_max_cd_m2 > o.display_min_cd_m2 &&
         std::isfinite(o.display_max_cd_m2))) {
@@ -140,18 +165,8 @@ class WardFactorLut {
 };
 
 cv::Mat WardPixels(const cv::Mat& radiance, const ToneMapOptions& o, ToneMapReport* report) {
-  cv::Mat foveal_rgb;
-  // Resizing is linear and so is luminance: averaging RGB then weighting equals averaging
-  // the luminance, at a third of the cost on the full image.
-  cv::resize(radiance, foveal_rgb, FovealSize(radiance.cols, radiance.rows, o.field_of_view_deg),
-             0, 0, cv::INTER_AREA);
-  cv::Mat foveal = Luminance(foveal_rgb);
-  std::vector<float> samples(foveal.begin<float>(), foveal.end<float>());
-  WardMapping mapping = ComputeWardMapping(samples, o, report);
-  if (report) {
-    report->foveal_width = foveal.cols;
-    report->foveal_height = foveal.rows;
-  }
+  const WardMapping mapping =
+      o.ward_fixed ? *o.ward_fixed : ComputeWardMappingForImage(radiance, o, report);
   if (mapping.linear) {
     const float m = static_cast<float>(mapping.linear_scale / mapping.display_max_cd_m2);
     return ScaleByLuminance(radiance, [m](float) { return m; });
@@ -250,6 +265,17 @@ const char* ToneMapMethodName(ToneMapMethod method) {
   return "unknown";
 }
 
+const char* WardVariantName(WardVariant variant) {
+  return variant == WardVariant::kPcond ? "pcond" : "paper";
+}
+
+Result<WardVariant> ParseWardVariant(const std::string& name) {
+  if (name == "pcond") return WardVariant::kPcond;
+  if (name == "paper") return WardVariant::kPaper;
+  return MakeError(ErrorCode::kInvalidInput, "tone mapping",
+                   "unknown Ward variant '{}' (pcond or paper)", name);
+}
+
 Result<ToneMapMethod> ParseToneMapMethod(const std::string& name) {
   for (ToneMapMethod m : {ToneMapMethod::kWard, ToneMapMethod::kLinear, ToneMapMethod::kReinhard,
                           ToneMapMethod::kDrago, ToneMapMethod::kMantiuk}) {
@@ -270,12 +296,38 @@ cv::Mat Luminance(const cv::Mat& bgr) {
   return lum;
 }
 
-cv::Mat FovealLuminance(const cv::Mat& luminance, double field_of_view_deg) {
+cv::Size FovealSampleSize(int cols, int rows, double field_of_view_deg, WardVariant variant) {
+  return variant == WardVariant::kPcond ? PcondFovealSize(cols, rows, field_of_view_deg)
+                                        : PaperFovealSize(cols, rows, field_of_view_deg);
+}
+
+cv::Mat FovealLuminance(const cv::Mat& luminance, double field_of_view_deg, WardVariant variant) {
   RIG_CHECK(luminance.type() == CV_32FC1, "FovealLuminance takes CV_32FC1");
   cv::Mat foveal;
-  cv::resize(luminance, foveal, FovealSize(luminance.cols, luminance.rows, field_of_view_deg), 0,
-             0, cv::INTER_AREA);
+  cv::resize(luminance, foveal,
+             FovealSampleSize(luminance.cols, luminance.rows, field_of_view_deg, variant), 0, 0,
+             cv::INTER_AREA);
   return foveal;
+}
+
+std::vector<int64_t> RandomPixelIndices(int64_t pixels, int64_t count, uint64_t seed) {
+  std::vector<int64_t> out;
+  if (pixels <= 0 || count <= 0) return out;
+  if (count >= pixels) {
+    out.resize(static_cast<size_t>(pixels));
+    for (int64_t i = 0; i < pixels; ++i) out[static_cast<size_t>(i)] = i;
+    return out;
+  }
+  std::mt19937_64 gen(seed);
+  std::vector<bool> taken(static_cast<size_t>(pixels), false);
+  out.reserve(static_cast<size_t>(count));
+  for (int64_t j = pixels - count; j < pixels; ++j) {
+    int64_t t = static_cast<int64_t>(gen() % static_cast<uint64_t>(j + 1));
+    if (taken[static_cast<size_t>(t)]) t = j;
+    taken[static_cast<size_t>(t)] = true;
+    out.push_back(t);
+  }
+  return out;
 }
 
 // ---- Ward's histogram ------------------------------------------------------------------
@@ -308,6 +360,48 @@ WardHistogram BuildLogHistogram(const std::vector<float>& luminance_samples, int
   return h;
 }
 
+WardHistogram BuildPcondHistogram(const std::vector<float>& foveal_samples,
+                                  const std::vector<float>& point_samples, int bins) {
+  RIG_CHECK(bins >= 2, "pcond's histogram needs two bins");
+  WardHistogram h;
+  h.counts.assign(bins, 0.0);
+  auto usable = [](float l) { return l > 0 && std::isfinite(l); };
+  double lmin = std::numeric_limits<double>::infinity(), lmax = 0;
+  for (const auto* set : {&foveal_samples, &point_samples}) {
+    for (float l : *set) {
+      if (!usable(l)) continue;
+      lmin = std::min(lmin, static_cast<double>(l));
+      lmax = std::max(lmax, static_cast<double>(l));
+    }
+  }
+  if (!(lmax > 0)) return h;
+  // The top goes 1% over the brightest sample; the bottom one bin under the darkest.
+  h.log_max = std::log(lmax * 1.01);
+  h.log_min = h.log_max - (h.log_max - std::log(lmin)) * bins / (bins - 1);
+  h.bin_width = (h.log_max - h.log_min) / bins;
+  double total = 0, sum_log = 0;
+  auto add = [&](float l, double w) {
+    if (!usable(l)) return;
+    const double b = std::log(static_cast<double>(l));
+    const int i = static_cast<int>(bins * (b - h.log_min) / (h.log_max - h.log_min));
+    h.counts[std::clamp(i, 0, bins - 1)] += w;
+    total += w;
+    sum_log += w * b;
+  };
+  for (float l : foveal_samples) add(l, 1.0);
+  // The point samples weigh, together, what the foveal samples weigh (pcond: histot / n).
+  if (!point_samples.empty() && total > 0) {
+    const double w = total / static_cast<double>(point_samples.size());
+    for (float l : point_samples) add(l, w);
+  }
+  h.original_total = total;
+  h.mean_log = total > 0 ? sum_log / total : 0;
+  // "False samples at the bottom": half of bin 1 goes to the padding bin 0.
+  h.counts[1] *= 0.5;
+  h.counts[0] += h.counts[1];
+  return h;
+}
+
 double CeilingValue(const WardHistogram& h, double display_log_range) {
   return h.Total() * h.bin_width / display_log_range;
 }
@@ -335,6 +429,35 @@ CeilingOutcome ApplyLinearCeiling(WardHistogram* h, double display_log_range, do
       return out;
     }
   }
+}
+
+CeilingOutcome ApplyPcondCeiling(WardHistogram* h, double display_log_range, double tolerance,
+                                 std::vector<double>* cumulative_before) {
+  RIG_CHECK(display_log_range > 0 && tolerance > 0, "ceiling needs a display range and tolerance");
+  CeilingOutcome out;
+  // A pass that goes on trims more than tolerance · total, and the total stays over
+  // tolerance · original: at most 1 / tolerance² passes.
+  const int max_passes = static_cast<int>(std::ceil(1 / (tolerance * tolerance))) + 1;
+  while (out.iterations < max_passes) {
+    const double total = h->Total();
+    *cumulative_before = CumulativeDistribution(*h);
+    if (total <= tolerance * h->original_total) return out;  // no compression needed
+    const double ceiling = total * h->bin_width / display_log_range;
+    double trimmed = 0;
+    for (double& c : h->counts) {
+      if (c > ceiling) {
+        trimmed += c - ceiling;
+        c = ceiling;
+      }
+    }
+    ++out.iterations;
+    out.last_trimmed = trimmed;
+    if (trimmed <= tolerance * total) {
+      out.converged = true;
+      return out;
+    }
+  }
+  return out;
 }
 
 std::vector<double> CumulativeDistribution(const WardHistogram& h) {
@@ -379,46 +502,106 @@ double WardMapping::PixelLuminance(double world_luminance) const {
 
 WardMapping ComputeWardMapping(const std::vector<float>& foveal_samples, const ToneMapOptions& o,
                                ToneMapReport* report) {
+  return ComputeWardMapping(foveal_samples, {}, o, report);
+}
+
+WardMapping ComputeWardMapping(const std::vector<float>& foveal_samples,
+                               const std::vector<float>& point_samples, const ToneMapOptions& o,
+                               ToneMapReport* report) {
+  const bool pcond = o.ward_variant == WardVariant::kPcond;
   WardMapping m;
   m.display_min_cd_m2 = o.display_min_cd_m2;
   m.display_max_cd_m2 = o.display_max_cd_m2;
-  WardHistogram h = BuildLogHistogram(foveal_samples, o.bins);
+  WardHistogram h = pcond ? BuildPcondHistogram(foveal_samples, point_samples, o.bins)
+                          : BuildLogHistogram(foveal_samples, o.bins);
   m.log_min = h.log_min;
   m.log_max = h.log_max;
   const double display_log_range = std::log(o.display_max_cd_m2 / o.display_min_cd_m2);
-  const double scene_log_range = h.log_max - h.log_min;
+  // The range pcond compares with the display's is the padded one.
+  const double histogram_range = h.log_max - h.log_min;
   int iterations = 0;
-  bool linear = scene_log_range <= display_log_range;
+  bool linear = histogram_range <= display_log_range;
+  std::vector<double> cumulative;
   if (!linear) {
-    CeilingOutcome c = ApplyLinearCeiling(&h, display_log_range, o.ceiling_tolerance);
+    CeilingOutcome c = pcond ? ApplyPcondCeiling(&h, display_log_range, o.ceiling_tolerance,
+                                                 &cumulative)
+                             : ApplyLinearCeiling(&h, display_log_range, o.ceiling_tolerance);
     iterations = c.iterations;
     linear = !c.converged;
+    if (!pcond) cumulative = CumulativeDistribution(h);
   }
-  if (linear) {
-    // Radiance's pcond: the log-average of the foveal samples goes to the display's
-    // geometric middle, sqrt(L_dmin · L_dmax).
+  double mean_log = 0;
+  int n = 0;
+  if (pcond) {
+    mean_log = h.mean_log;
+    n = h.original_total > 0 ? 1 : 0;
+  } else {
     double sum = 0;
-    int n = 0;
     for (float l : foveal_samples) {
       if (l > 0 && std::isfinite(l)) {
         sum += std::log(static_cast<double>(l));
         ++n;
       }
     }
+    mean_log = n > 0 ? sum / n : 0;
+  }
+  if (linear) {
+    // Radiance's pcond: the log-average of the samples goes to the display's geometric
+    // middle, sqrt(L_dmin · L_dmax).
     m.linear = true;
-    m.linear_scale = n > 0 ? std::sqrt(o.display_min_cd_m2 * o.display_max_cd_m2) /
-                                 std::exp(sum / n)
-                           : 1.0;
+    m.linear_scale =
+        n > 0 ? std::sqrt(o.display_min_cd_m2 * o.display_max_cd_m2) / std::exp(mean_log) : 1.0;
   } else {
-    m.cumulative = CumulativeDistribution(h);
+    m.cumulative = std::move(cumulative);
   }
   if (report) {
     report->linear_fallback = m.linear;
     report->trim_iterations = iterations;
-    report->scene_log_range = scene_log_range;
+    double lo = std::numeric_limits<double>::infinity(), hi = 0;
+    for (const auto* set : {&foveal_samples, &point_samples}) {
+      if (!pcond && set == &point_samples) continue;
+      for (float l : *set) {
+        if (!(l > 0 && std::isfinite(l))) continue;
+        lo = std::min(lo, static_cast<double>(l));
+        hi = std::max(hi, static_cast<double>(l));
+      }
+    }
+    report->scene_log_range = hi > 0 ? std::log(hi / lo) : 0;
     report->linear_scale = m.linear ? m.linear_scale : 0;
   }
   return m;
+}
+
+WardMapping ComputeWardMappingForImage(const cv::Mat& radiance, const ToneMapOptions& o,
+                                       ToneMapReport* report) {
+  RIG_CHECK(radiance.type() == CV_32FC3 && !radiance.empty(), "Ward takes CV_32FC3");
+  cv::Mat foveal_rgb;
+  // Resizing is linear and so is luminance: averaging RGB then weighting equals averaging
+  // the luminance, at a third of the cost on the full image.
+  cv::resize(radiance, foveal_rgb,
+             FovealSampleSize(radiance.cols, radiance.rows, o.field_of_view_deg, o.ward_variant),
+             0, 0, cv::INTER_AREA);
+  cv::Mat foveal = Luminance(foveal_rgb);
+  std::vector<float> samples(foveal.begin<float>(), foveal.end<float>());
+  std::vector<float> points;
+  if (o.ward_variant == WardVariant::kPcond && o.ward_point_samples_per_foveal > 0) {
+    const int64_t pixels = static_cast<int64_t>(radiance.total());
+    const int64_t wanted = static_cast<int64_t>(samples.size()) * o.ward_point_samples_per_foveal;
+    const std::vector<int64_t> idx = RandomPixelIndices(pixels, wanted, o.ward_seed);
+    points.reserve(idx.size());
+    const int cols = radiance.cols;
+    for (int64_t i : idx) {
+      const float* p = radiance.ptr<float>(static_cast<int>(i / cols)) + 3 * (i % cols);
+      points.push_back(kWeightB * p[0] + kWeightG * p[1] + kWeightR * p[2]);
+    }
+  }
+  WardMapping mapping = ComputeWardMapping(samples, points, o, report);
+  if (report) {
+    report->foveal_width = foveal.cols;
+    report->foveal_height = foveal.rows;
+    report->point_samples = static_cast<int>(points.size());
+  }
+  return mapping;
 }
 
 // ---- Whole images ----------------------------------------------------------------------

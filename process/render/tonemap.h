@@ -3,6 +3,8 @@
 // of OpenCV's operators (Reinhard, Drago, Mantiuk) for comparison. See docs/tonemap.md.
 #pragma once
 
+#include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -14,6 +16,21 @@
 namespace rig {
 
 enum class ToneMapMethod { kWard, kLinear, kReinhard, kDrago, kMantiuk };
+
+// Ward's histogram adjustment as Radiance's pcond computes it (the default), or as the 1997
+// paper describes it. See docs/render.md, "Ward's curve", for every difference.
+//   kPcond: the field of view on the larger image side, 2·tan(fov/2) / 1° samples across it;
+//           16 random single pixels per foveal sample, together weighted as much as the foveal
+//           samples; the range padded (max × 1.01, one extra bin below the minimum, half of
+//           bin 1 moved into it); the stop test against the current total; the cumulative
+//           from before the last trim; the linear fallback at the mean log of all samples.
+//   kPaper: 1° foveal samples only, horizontal field of view, the exact sample range, the
+//           stop test against the original total, the cumulative after the last trim.
+enum class WardVariant { kPcond, kPaper };
+const char* WardVariantName(WardVariant variant);  // "pcond", "paper"
+Result<WardVariant> ParseWardVariant(const std::string& name);
+
+struct WardMapping;
 
 // "ward", "linear", "reinhard", "drago", "mantiuk".
 const char* ToneMapMethodName(ToneMapMethod method);
@@ -31,6 +48,14 @@ struct ToneMapOptions {
   // the `linear_percentile` of pixel luminance maps to white.
   double linear_scale = 0;
   double linear_percentile = 99;
+  WardVariant ward_variant = WardVariant::kPcond;
+  // kPcond: the seed of the random single-pixel samples (std::mt19937_64; pcond itself draws
+  // with its own random(), so its pixels differ from ours) and how many per foveal sample.
+  uint64_t ward_seed = 1;
+  int ward_point_samples_per_foveal = 16;
+  // kWard: when set, this mapping is applied as it is instead of one computed from the image
+  // (a fixed display: comparisons, lamp intensity, sweeps).
+  std::shared_ptr<const WardMapping> ward_fixed;
 };
 
 // The default options with a configuration's display: [process] field_of_view_deg,
@@ -43,6 +68,7 @@ struct ToneMapReport {
   int trim_iterations = 0;       // Ward: passes of the ceiling procedure
   double scene_log_range = 0;    // ln(max / min) of the foveal samples (Ward), else of the pixels
   int foveal_width = 0, foveal_height = 0;  // Ward: size of the foveal sample image
+  int point_samples = 0;         // Ward (pcond): random single pixels added to the histogram
   double linear_scale = 0;       // the scale used by a linear mapping (Ward fallback or kLinear)
   double clipped_low_fraction = 0, clipped_high_fraction = 0;  // pixels at 0 / at 255 (any channel)
 };
@@ -71,18 +97,28 @@ double FieldOfViewDeg(double focal_length_mm, double sensor_width_mm);
 cv::Mat Luminance(const cv::Mat& bgr);
 
 // Ward's foveal samples: the luminance averaged (linearly, as the eye integrates light) over
-// blocks of about 1° of visual angle, pixels per degree = width / field_of_view_deg. At least
-// 2 samples each way. CV_32FC1.
-cv::Mat FovealLuminance(const cv::Mat& luminance, double field_of_view_deg);
+// blocks of about 1° of visual angle. kPaper: field_of_view_deg samples across the width;
+// kPcond: 2·tan(fov/2)/(1° in radians) + 0.5 (truncated) across the larger side, the other
+// side in proportion. At least 2 samples each way, never more than the image has. CV_32FC1.
+cv::Mat FovealLuminance(const cv::Mat& luminance, double field_of_view_deg,
+                        WardVariant variant = WardVariant::kPaper);
+cv::Size FovealSampleSize(int cols, int rows, double field_of_view_deg, WardVariant variant);
+
+// pcond's random single-pixel samples: `count` distinct pixel indices of an image of `pixels`
+// pixels (every pixel when count >= pixels), drawn by Floyd's algorithm from
+// std::mt19937_64(seed): for j = pixels − count … pixels − 1, t = gen() % (j + 1); t is taken
+// unless already chosen, then j is. In draw order.
+std::vector<int64_t> RandomPixelIndices(int64_t pixels, int64_t count, uint64_t seed);
 
 // ---- Ward's histogram adjustment, exposed for tests -------------------------------------
 // All logarithms are natural: b = ln(L_w), B_d = ln(L_d).
 
 struct WardHistogram {
-  double log_min = 0, log_max = 0;  // range of b over the samples
+  double log_min = 0, log_max = 0;  // range of b over the samples (kPcond: padded)
   double bin_width = 0;             // Δb = (log_max - log_min) / bins
   std::vector<double> counts;       // f(b_i), bin i covers [log_min + iΔb, log_min + (i+1)Δb)
   double original_total = 0;        // T before any trimming
+  double mean_log = 0;              // the (weighted) mean of b over the samples
   double Total() const;             // T = Σ f(b_i) now
   int bins() const { return static_cast<int>(counts.size()); }
 };
@@ -90,6 +126,14 @@ struct WardHistogram {
 // Histogram of ln(L) over the samples that are positive and finite (others are ignored).
 // An empty or one-valued sample set gives log_min == log_max and all counts in bin 0.
 WardHistogram BuildLogHistogram(const std::vector<float>& luminance_samples, int bins);
+
+// pcond's histogram (comphist): foveal samples weight 1, the point samples together as much
+// as the foveal ones; range [ln L_max·1.01 − (ln(1.01·L_max) − ln L_min)·bins/(bins−1),
+// ln(1.01·L_max)] over both sets; then half of bin 1 is moved into bin 0. Non-positive and
+// non-finite samples are ignored (pcond has absolute limits 1e-7 … 1e5 cd/m²; our radiance
+// is relative, so none are applied).
+WardHistogram BuildPcondHistogram(const std::vector<float>& foveal_samples,
+                                  const std::vector<float>& point_samples, int bins);
 
 // The linear ceiling of eq. 11 for the histogram's current total:
 // T · Δb / (ln L_dmax − ln L_dmin).
@@ -104,6 +148,14 @@ struct CeilingOutcome {
 // Ward's procedure: repeatedly clip every bin to the ceiling of the current total until a
 // pass trims no more than tolerance · original_total, or the total itself falls under it.
 CeilingOutcome ApplyLinearCeiling(WardHistogram* h, double display_log_range, double tolerance);
+
+// pcond's loop (mkbrmap): the cumulative of the current histogram is taken, the loop gives
+// up (not converged) when the current total is at or under tolerance · original total, every
+// bin is clipped to the ceiling of the current total, and the loop repeats while a pass trims
+// more than tolerance · the total it started from. *cumulative_before: the cumulative taken
+// at the start of the last pass (before its trim), which is the one pcond maps with.
+CeilingOutcome ApplyPcondCeiling(WardHistogram* h, double display_log_range, double tolerance,
+                                 std::vector<double>* cumulative_before);
 
 // P at the bin edges: bins + 1 values, P[0] = 0, P[bins] = 1, P[k] = Σ_{i<k} f(b_i) / T.
 std::vector<double> CumulativeDistribution(const WardHistogram& h);
@@ -130,5 +182,13 @@ struct WardMapping {
 // geometric middle), ceiling, cumulative. Fills the Ward fields of `report` if given.
 WardMapping ComputeWardMapping(const std::vector<float>& foveal_samples,
                                const ToneMapOptions& o, ToneMapReport* report = nullptr);
+// The same with pcond's point samples (used by kPcond; ignored by kPaper).
+WardMapping ComputeWardMapping(const std::vector<float>& foveal_samples,
+                               const std::vector<float>& point_samples, const ToneMapOptions& o,
+                               ToneMapReport* report = nullptr);
+// The mapping Ward's operator settles on for a whole radiance map (CV_32FC3): foveal samples,
+// point samples (kPcond), histogram, ceiling. What ToneMap applies (unless ward_fixed is set).
+WardMapping ComputeWardMappingForImage(const cv::Mat& radiance, const ToneMapOptions& o,
+                                       ToneMapReport* report = nullptr);
 
 }  // namespace rig

@@ -3,7 +3,9 @@
 // renders a lamp sweeping along a path. Output: radiance (EXR), a tone-mapped picture, or the
 // picture the camera would have recorded at a chosen exposure time (the paper's Fig. 12).
 // The work is process/render/relight.h; the session's files come from capture/session.
+#include <cmath>
 #include <cstdio>
+#include <optional>
 #include <filesystem>
 #include <sstream>
 
@@ -11,6 +13,7 @@
 #include "process/export/load_any.h"
 #include "process/hdr/hdr.h"
 #include "process/model/model.h"
+#include "process/render/radiance_file.h"
 #include "process/render/relight.h"
 #include "process/render/tonemap.h"
 #include "rig/commands/command.h"
@@ -36,21 +39,68 @@ Result<std::vector<double>> ParseNumbers(const std::string& option, const std::s
   return v;
 }
 
-// "H,V[,R,G,B[,I]]"
+// The colour and intensity after a lamp's position: [R,G,B[,I]].
+Status ParseColour(const std::string& text, const std::vector<double>& v, size_t first,
+                   RelightLamp* l) {
+  const size_t rest = v.size() - first;
+  if (rest != 0 && rest != 3 && rest != 4) {
+    return MakeError(ErrorCode::kInvalidInput, "--light " + text,
+                     "after the position: nothing, R,G,B or R,G,B,I ({} numbers given)", rest);
+  }
+  if (rest >= 3) l->rgb = {v[first], v[first + 1], v[first + 2]};
+  if (rest == 4) l->intensity = v[first + 3];
+  for (double c : l->rgb)
+    if (c < 0) return MakeError(ErrorCode::kInvalidInput, "--light " + text, "negative colour");
+  if (l->intensity < 0) return MakeError(ErrorCode::kInvalidInput, "--light " + text, "negative intensity");
+  return Ok();
+}
+
+// Three forms, told apart by their start:
+//   H,V[,R,G,B[,I]]                rig angles (degrees), through the model's light frame
+//   dir=X,Y,Z[,R,G,B[,I]]          a unit direction in the object frame (the .lp convention)
+//   az=A,el=E[,R,G,B[,I]]          azimuth in the image plane from +x towards +y, elevation
+//                                  above the object plane (90: from the camera), degrees
 Result<RelightLamp> ParseLamp(const std::string& text) {
+  RelightLamp l;
+  if (text.rfind("dir=", 0) == 0) {
+    RIG_ASSIGN_OR_RETURN(std::vector<double> v, ParseNumbers("--light", text.substr(4)));
+    if (v.size() < 3) {
+      return MakeError(ErrorCode::kInvalidInput, "--light " + text, "dir= takes X,Y,Z");
+    }
+    const double n = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    if (!std::isfinite(n) || std::abs(n - 1) > 0.01) {
+      return MakeError(ErrorCode::kInvalidInput, "--light " + text,
+                       "dir= takes a unit vector, this one has length {:.4g}", n);
+    }
+    l.direction = Vec3{v[0] / n, v[1] / n, v[2] / n};
+    RIG_TRY(ParseColour(text, v, 3, &l));
+    return l;
+  }
+  if (text.rfind("az=", 0) == 0) {
+    const size_t comma = text.find(',');
+    if (comma == std::string::npos || text.compare(comma + 1, 3, "el=") != 0) {
+      return MakeError(ErrorCode::kInvalidInput, "--light " + text,
+                       "expected az=A,el=E[,R,G,B[,I]] (degrees)");
+    }
+    const std::string numbers = text.substr(3, comma - 3) + "," + text.substr(comma + 4);
+    RIG_ASSIGN_OR_RETURN(std::vector<double> v, ParseNumbers("--light", numbers));
+    if (v.size() < 2 || v[1] < -90 || v[1] > 90) {
+      return MakeError(ErrorCode::kInvalidInput, "--light " + text,
+                       "elevation must be in [-90, 90] degrees");
+    }
+    l.direction = AzimuthElevationDirection(v[0], v[1]);
+    RIG_TRY(ParseColour(text, v, 2, &l));
+    return l;
+  }
   RIG_ASSIGN_OR_RETURN(std::vector<double> v, ParseNumbers("--light", text));
   if (v.size() != 2 && v.size() != 5 && v.size() != 6) {
     return MakeError(ErrorCode::kInvalidInput, "--light " + text,
-                     "expected H,V or H,V,R,G,B or H,V,R,G,B,I");
+                     "expected H,V or H,V,R,G,B or H,V,R,G,B,I (rig angles), "
+                     "dir=X,Y,Z[,...] or az=A,el=E[,...]");
   }
-  RelightLamp l;
   l.h_deg = v[0];
   l.v_deg = v[1];
-  if (v.size() >= 5) l.rgb = {v[2], v[3], v[4]};
-  if (v.size() == 6) l.intensity = v[5];
-  for (double c : l.rgb)
-    if (c < 0) return MakeError(ErrorCode::kInvalidInput, "--light " + text, "negative colour");
-  if (l.intensity < 0) return MakeError(ErrorCode::kInvalidInput, "--light " + text, "negative intensity");
+  RIG_TRY(ParseColour(text, v, 2, &l));
   return l;
 }
 
@@ -78,7 +128,9 @@ Result<std::vector<RelightLamp>> ParseSweep(const std::string& text) {
 
 // The command line as given.
 struct RenderArgs {
-  std::string source, out, log_level, tonemap_name, sweep_text, response_option;
+  std::string source, out, log_level, tonemap_name, sweep_text, response_option,
+      ward_variant = "pcond", display_from;
+  std::optional<double> display_ev;
   std::vector<std::string> lights;
   double exposure_s = 0, fps = 12;
   int frames = 24;
@@ -89,8 +141,11 @@ void AddRenderOptions(CLI::App& app, RenderArgs* a) {
   app.add_option("MODEL", a->source, "a model EXR (rig fit) or a session folder (its model/model.exr)")
       ->required();
   app.add_option("--light", a->lights,
-                 "lamp H,V[,R,G,B[,I]]: rig angles (deg), colour relative to the capture lamp, "
-                 "intensity; repeat for several lamps");
+                 "lamp H,V[,R,G,B[,I]] in rig angles (deg), or dir=X,Y,Z[,R,G,B[,I]] (unit "
+                 "vector, object frame: x right, y up, z to the camera, as .lp files), or "
+                 "az=A,el=E[,R,G,B[,I]] (deg: azimuth from +x towards +y, elevation above the "
+                 "object plane); colour relative to the capture lamp, intensity; repeat for "
+                 "several lamps");
   app.add_option("--sweep", a->sweep_text,
                  "a lamp moving along H,V:H,V[:H,V...] (rig angles); writes --frames frames "
                  "(plus any --light lamps, held still)");
@@ -105,6 +160,14 @@ void AddRenderOptions(CLI::App& app, RenderArgs* a) {
   app.add_option("--tonemap", a->tonemap_name,
                  "tone mapping for a picture: ward (histogram adjustment), linear, reinhard, "
                  "drago, mantiuk (default for pictures: ward)");
+  app.add_option("--ward-variant", a->ward_variant,
+                 "ward: pcond (default, as Radiance's pcond) or paper (1-degree samples only)");
+  app.add_option("--display-ev", a->display_ev,
+                 "fixed display: pixel = radiance x 2^EV before the encoding, no tone mapping "
+                 "(pictures compare, lamp intensity shows)");
+  app.add_option("--display-from", a->display_from,
+                 "fixed display: the --tonemap mapping (ward or linear) of this radiance EXR "
+                 "(e.g. an earlier rig render --out ref.exr), applied as it is");
   app.add_flag("--extrapolate", a->extrapolate,
                "render lamps outside the sampled lamp region (with a warning) instead of refusing");
   app.add_option("--out", a->out,
@@ -141,6 +204,16 @@ Result<RelightRequest> RequestFromArgs(const RenderArgs& a) {
     return Bad(a.out, "an .exr holds linear radiance: --exposure and --tonemap need a picture output");
   }
   if (fs::exists(a.out)) return Bad(a.out, "exists; choose another name (nothing is overwritten)");
+  if ((a.display_ev || !a.display_from.empty()) &&
+      (kind == RenderFileKind::kExr || a.exposure_s > 0)) {
+    return Bad(a.display_ev ? "--display-ev" : "--display-from",
+               "a fixed display is for pictures (not .exr, not with --exposure)");
+  }
+  if (a.display_ev && !a.display_from.empty()) {
+    return Bad("--display-ev", "--display-ev and --display-from exclude each other");
+  }
+  if (a.display_ev && !std::isfinite(*a.display_ev)) return Bad("--display-ev", "must be finite");
+  request.display_ev = a.display_ev;
   request.extrapolate = a.extrapolate;
   request.exposure_s = a.exposure_s;
   request.display = a.exposure_s > 0 ? RenderDisplay::kExposure
@@ -159,6 +232,12 @@ Status ApplySource(const RenderArgs& a, const RenderSource& source, RelightReque
     RIG_ASSIGN_OR_RETURN(request->tonemap.method, ParseToneMapMethod(a.tonemap_name));
   }
   request->tonemap.srgb = true;
+  RIG_ASSIGN_OR_RETURN(request->tonemap.ward_variant, ParseWardVariant(a.ward_variant));
+  if (!a.display_from.empty()) {
+    auto reference = ReadRadianceFile(a.display_from);
+    if (!reference.ok()) return reference.error().Within("--display-from");
+    request->display_reference = *reference;
+  }
   if (request->display != RenderDisplay::kExposure) return Ok();
   if (source.response_path.empty()) {
     return Bad("--exposure", fmt::format("no response curve known for {}: give --response FILE", a.source));
@@ -203,6 +282,13 @@ int RunRender(int argc, char** argv) {
   if (!output.ok()) return ReportError("render", output.error());
   auto files = WriteRender(*output, *request, a.out, a.fps);
   if (!files.ok()) return ReportError("render", files.error());
+  if (files->filled_pixels > 0) {
+    std::printf("rig render: %zu pixel%s the fit flagged filled from their neighbours in the "
+                "picture%s (an .exr keeps them 0)\n",
+                files->filled_pixels, files->filled_pixels == 1 ? "" : "s",
+                files->frames > 1 ? "s" : "");
+  }
+  if (!output->display_note.empty()) std::printf("rig render: %s\n", output->display_note.c_str());
 
   if (request->sweep.empty()) {
     const size_t n = request->lamps.size();

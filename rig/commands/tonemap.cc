@@ -12,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "config/config.h"
+#include "process/render/radiance_file.h"
 #include "process/io/exr_io.h"
 #include "process/render/tonemap.h"
 #include "rig/commands/command.h"
@@ -20,29 +21,6 @@ namespace rig {
 namespace {
 
 // Reads a radiance map: OpenEXR through exr_io, Radiance RGBE (.hdr/.pic) through OpenCV.
-Result<cv::Mat> ReadRadiance(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  for (char& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-  if (!std::filesystem::exists(path)) {
-    return MakeError(ErrorCode::kNotFound, path, "no such file");
-  }
-  if (ext == ".exr") return ReadRgbExr(path);
-  if (ext != ".hdr" && ext != ".pic") {
-    return MakeError(ErrorCode::kInvalidInput, path,
-                     "unknown HDR format '{}' (.exr, .hdr or .pic expected)", ext);
-  }
-  cv::Mat img;
-  try {
-    img = cv::imread(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_COLOR);
-  } catch (const cv::Exception& e) {
-    return MakeError(ErrorCode::kInvalidInput, path, "cannot read: {}", e.what());
-  }
-  if (img.empty() || img.type() != CV_32FC3) {
-    return MakeError(ErrorCode::kInvalidInput, path, "not a readable Radiance RGBE picture");
-  }
-  return img;
-}
-
 // One method's picture, resized to `width` (0: as is), with its name written in a corner.
 cv::Mat Panel(const cv::Mat& picture, int width, const std::string& label) {
   cv::Mat panel = picture;
@@ -69,7 +47,7 @@ cv::Mat Panel(const cv::Mat& picture, int width, const std::string& label) {
 int RunTonemap(int argc, char** argv) {
   CLI::App app{"Tone-map an HDR image (OpenEXR or Radiance .hdr) to an 8-bit picture.",
                "rig tonemap"};
-  std::string in, out, method_name = "ward", config_path, log_level;
+  std::string in, out, method_name = "ward", config_path, log_level, ward_variant = "pcond";
   double fov_deg = 0, focal_mm = 0, sensor_mm = 0, display_min = 0, display_max = 0;
   double exposure_scale = 0, gamma = 2.2;
   bool srgb = false, compare = false;
@@ -78,8 +56,12 @@ int RunTonemap(int argc, char** argv) {
       ->required();
   app.add_option("--out", out, "output picture (.png, .jpg, ...)")->required();
   app.add_option("--method", method_name, "ward (default), linear, reinhard, drago or mantiuk");
+  app.add_option("--ward-variant", ward_variant,
+                 "ward: pcond (default: as Radiance's pcond computes it, 16 random pixels per "
+                 "foveal sample) or paper (the 1997 paper's 1-degree samples only)");
   app.add_option("--fov-deg", fov_deg,
-                 "horizontal field of view in degrees, for Ward's 1-degree samples "
+                 "field of view in degrees, for Ward's 1-degree samples: of the larger side "
+                 "(pcond), of the width (paper) "
                  "(default: from --config, else from lens and sensor, else 40)");
   app.add_option("--focal-length-mm", focal_mm, "lens focal length (with --sensor-width-mm)");
   app.add_option("--sensor-width-mm", sensor_mm, "sensor width (with --focal-length-mm)");
@@ -119,6 +101,9 @@ int RunTonemap(int argc, char** argv) {
   auto method = ParseToneMapMethod(method_name);
   if (!method.ok()) return ReportError("tonemap", method.error());
   options.method = *method;
+  auto variant = ParseWardVariant(ward_variant);
+  if (!variant.ok()) return ReportError("tonemap", variant.error().Within("--ward-variant"));
+  options.ward_variant = *variant;
   if (exposure_scale > 0) {
     if (options.method != ToneMapMethod::kLinear || compare) {
       return ReportError("tonemap", MakeError(ErrorCode::kInvalidInput, "",
@@ -127,7 +112,7 @@ int RunTonemap(int argc, char** argv) {
     options.linear_scale = exposure_scale;
   }
 
-  auto radiance = ReadRadiance(in);
+  auto radiance = ReadRadianceFile(in);
   if (!radiance.ok()) return ReportError("tonemap", radiance.error());
 
   std::vector<ToneMapMethod> methods = {options.method};

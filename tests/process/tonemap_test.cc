@@ -59,6 +59,7 @@ TEST(WardHistogram, CeilingHoldsAfterTrimmingWithinTolerance) {
 
 TEST(WardHistogram, TrimmedMappingNeverExaggeratesContrastBeyondLinear) {
   ToneMapOptions o;
+  o.ward_variant = WardVariant::kPaper;  // the bound is the paper's (cumulative after the trim)
   WardMapping m = ComputeWardMapping(SpikySamples(), o);
   ASSERT_FALSE(m.linear);
   // The bound: a bin's slope is ln-display-range · f_i / (T Δb), and f_i is at most the
@@ -143,7 +144,21 @@ TEST(ToneMap, WardImageIsMonotonicAlongALuminanceRamp) {
 TEST(ToneMap, ExtremeRangeSceneUsesTheFullDisplayRange) {
   cv::Mat ramp = LogRamp(1200, 60, 1e-4, 1e4);
   ToneMapReport report;
-  auto out = ToneMap(ramp, ToneMapOptions{}, &report);
+  ToneMapOptions paper;
+  paper.ward_variant = WardVariant::kPaper;
+  {
+    // pcond pads the range: the darkest pixel sits one bin above the bottom, with half of
+    // bin 1's samples under it, so it is dark but not black; the brightest is white.
+    auto pcond = ToneMap(ramp, ToneMapOptions{}, &report);
+    ASSERT_TRUE(pcond.ok());
+    double lo, hi;
+    cv::minMaxLoc(pcond->reshape(1), &lo, &hi);
+    EXPECT_GT(lo, 0);
+    EXPECT_LE(lo, 8);
+    EXPECT_EQ(hi, 255);
+    EXPECT_GT(report.point_samples, 0);
+  }
+  auto out = ToneMap(ramp, paper, &report);
   ASSERT_TRUE(out.ok());
   EXPECT_FALSE(report.linear_fallback);
   EXPECT_NEAR(report.scene_log_range, std::log(1e8), 0.5);  // foveal averaging trims the ends
@@ -258,9 +273,68 @@ TEST(ToneMap, FovealSamplesAreOnePerDegree) {
   EXPECT_NEAR(FieldOfViewDeg(50, 36), 39.5978, 1e-3);  // a 50 mm lens on a full-frame sensor
   ToneMapReport report;
   cv::Mat img(676, 1024, CV_32FC3, cv::Scalar::all(1));
-  ASSERT_TRUE(ToneMap(img, ToneMapOptions{}, &report).ok());
+  ToneMapOptions paper;
+  paper.ward_variant = WardVariant::kPaper;
+  ASSERT_TRUE(ToneMap(img, paper, &report).ok());
   EXPECT_EQ(report.foveal_width, 40);
   EXPECT_EQ(report.foveal_height, 26);
+  // pcond: 2·tan(20°) / 1° = 41.7 samples across the larger side, rounded; the other side
+  // 41.7 · 676 / 1024 = 27.5 → 28. A portrait image turns the grid, not the field of view.
+  ASSERT_TRUE(ToneMap(img, ToneMapOptions{}, &report).ok());
+  EXPECT_EQ(report.foveal_width, 42);
+  EXPECT_EQ(report.foveal_height, 28);
+  EXPECT_EQ(report.point_samples, 16 * 42 * 28);
+  cv::Mat portrait(1024, 676, CV_32FC3, cv::Scalar::all(1));
+  ASSERT_TRUE(ToneMap(portrait, ToneMapOptions{}, &report).ok());
+  EXPECT_EQ(report.foveal_width, 28);
+  EXPECT_EQ(report.foveal_height, 42);
+  ASSERT_TRUE(ToneMap(portrait, paper, &report).ok());
+  EXPECT_EQ(report.foveal_width, 40);  // the paper's: horizontal on every image
+  EXPECT_EQ(report.foveal_height, 61);
+}
+
+TEST(WardPcond, RandomPixelsAreDistinctSeededAndEveryPixelWhenAskedForMore) {
+  const auto a = RandomPixelIndices(1000, 300, 7), b = RandomPixelIndices(1000, 300, 7);
+  EXPECT_EQ(a, b);
+  EXPECT_NE(a, RandomPixelIndices(1000, 300, 8));
+  std::vector<int64_t> sorted = a;
+  std::sort(sorted.begin(), sorted.end());
+  EXPECT_EQ(std::unique(sorted.begin(), sorted.end()), sorted.end());
+  EXPECT_GE(sorted.front(), 0);
+  EXPECT_LT(sorted.back(), 1000);
+  EXPECT_EQ(RandomPixelIndices(50, 80, 1).size(), 50u);
+}
+
+TEST(WardPcond, HistogramIsPaddedAndPointSamplesWeighAsMuchAsTheFovealOnes) {
+  // Foveal: 4 samples at 1 and 4 at e^4; points: 16 at e^2.
+  std::vector<float> foveal(4, 1.0f), points(16, std::exp(2.0f));
+  foveal.insert(foveal.end(), 4, std::exp(4.0f));
+  WardHistogram h = BuildPcondHistogram(foveal, points, 10);
+  const double top = 4 + std::log(1.01);
+  EXPECT_NEAR(h.log_max, top, 1e-6);  // e^4 as a float
+  EXPECT_NEAR(h.log_min, top - top * 10 / 9, 1e-6);  // one bin below ln 1 = 0
+  EXPECT_DOUBLE_EQ(h.original_total, 16);            // 8 foveal + 16 points of weight 1/2
+  EXPECT_NEAR(h.Total(), 16, 1e-12);
+  // ln 1 = 0 is bin 1's lower edge: half of its 4 samples moved to the padding bin 0.
+  EXPECT_DOUBLE_EQ(h.counts[0], 2);
+  EXPECT_DOUBLE_EQ(h.counts[1], 2);
+  EXPECT_NEAR(h.mean_log, (4 * 0 + 4 * 4 + 8 * 2) / 16.0, 1e-9);
+}
+
+TEST(WardPcond, StopTestUsesTheCurrentTotalAndTheCumulativeBeforeTheLastTrim) {
+  WardHistogram h = BuildPcondHistogram(SpikySamples(), {}, 100);
+  WardHistogram before = h;
+  std::vector<double> cumulative;
+  CeilingOutcome c = ApplyPcondCeiling(&h, kDisplayLogRange, 0.025, &cumulative);
+  ASSERT_TRUE(c.converged);
+  // The last pass trimmed at most 2.5% of the total it started from ...
+  EXPECT_LE(c.last_trimmed, 0.025 * (h.Total() + c.last_trimmed) + 1e-9);
+  // ... and the mapping's cumulative is that total's, not the trimmed one's.
+  ASSERT_EQ(cumulative.size(), 101u);
+  EXPECT_NE(cumulative, CumulativeDistribution(h));
+  EXPECT_NE(cumulative, CumulativeDistribution(before));
+  EXPECT_EQ(cumulative.front(), 0.0);
+  EXPECT_EQ(cumulative.back(), 1.0);
 }
 
 TEST(ToneMap, OpenCvOperatorsProduceFiniteMidRangePictures) {
