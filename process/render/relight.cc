@@ -194,8 +194,18 @@ Result<RenderOutput> Relight(const ReflectanceModel& model, const RelightRequest
   output.tonemap = request.tonemap;
   output.sweep = request.sweep;
   output.valid = model.valid();
+  if (!request.envmap.empty()) {
+    if (!request.sweep.empty()) {
+      return MakeError(ErrorCode::kInvalidInput, "--envmap", "an environment map renders one frame, not a sweep");
+    }
+    RIG_ASSIGN_OR_RETURN(EnvmapRender env, RenderEnvironment(model, request.harmonic, request.envmap,
+                                                             request.envmap_options));
+    output.envmap = std::move(env);
+  }
   if (request.sweep.empty()) {
-    output.radiance.push_back(SumOfLamps(model, request.lamps));
+    cv::Mat sum = SumOfLamps(model, request.lamps);
+    if (output.envmap) sum = sum.empty() ? output.envmap->radiance.clone() : sum + output.envmap->radiance;
+    output.radiance.push_back(sum);
   } else {
     for (const auto& l : request.sweep) {
       std::vector<RelightLamp> set = request.lamps;
@@ -242,11 +252,19 @@ Result<RenderOutput> Relight(const ReflectanceModel& model, const RelightRequest
   }
   bool unit = true;
   for (const auto& l : request.lamps) unit = unit && l.intensity == 1;
+  const double env_intensity = request.envmap_options.intensity;
+  if (output.envmap) unit = unit && env_intensity == 1;
   if (fixable && !unit) {
     // The display the same lamps at intensity 1 get: intensity changes the picture.
     std::vector<RelightLamp> ones = request.lamps;
     for (auto& l : ones) l.intensity = 1;
-    RIG_TRY(FixMapping(SumOfLamps(model, ones), &output.tonemap));
+    cv::Mat reference = SumOfLamps(model, ones);
+    if (output.envmap && env_intensity > 0) {
+      cv::Mat env = output.envmap->radiance / env_intensity;
+      reference = reference.empty() ? env : reference + env;
+    }
+    if (reference.empty()) return output;
+    RIG_TRY(FixMapping(reference, &output.tonemap));
     output.display_note = "mapped as the same lamps at intensity 1";
   }
   return output;

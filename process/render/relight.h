@@ -13,6 +13,7 @@
 
 #include "config/result.h"
 #include "process/model/reflectance_model.h"
+#include "process/render/envmap.h"
 #include "process/render/tonemap.h"
 
 namespace rig {
@@ -69,6 +70,11 @@ struct RelightRequest {
   // intensity 4 is brighter through the same curve); a sweep with one linear scale (below).
   std::optional<double> display_ev;
   cv::Mat display_reference;
+  // An environment map (lat-long CV_32FC3, checked) lighting every frame besides the lamps;
+  // `harmonic` is the model's coefficients when it is a harmonic model (projection), else null.
+  cv::Mat envmap;
+  EnvmapOptions envmap_options;
+  const Model* harmonic = nullptr;
 };
 
 struct RenderOutput {
@@ -82,6 +88,7 @@ struct RenderOutput {
   // flagged pixels from their neighbours; radiance (EXR) keeps them 0.
   cv::Mat valid;
   std::string display_note;  // how the pictures are mapped, for the log line
+  std::optional<EnvmapRender> envmap;  // the environment's part (its radiance and figures)
 };
 
 // Flagged pixels (valid == 0) filled from their valid neighbours: repeated 3x3 averages of

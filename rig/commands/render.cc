@@ -9,10 +9,13 @@
 #include <filesystem>
 #include <sstream>
 
+#include <opencv2/imgproc.hpp>
+
 #include "capture/session/render_source.h"
 #include "process/export/load_any.h"
 #include "process/hdr/hdr.h"
 #include "process/model/model.h"
+#include "process/render/envmap.h"
 #include "process/render/radiance_file.h"
 #include "process/render/relight.h"
 #include "process/render/tonemap.h"
@@ -129,7 +132,10 @@ Result<std::vector<RelightLamp>> ParseSweep(const std::string& text) {
 // The command line as given.
 struct RenderArgs {
   std::string source, out, log_level, tonemap_name, sweep_text, response_option,
-      ward_variant = "pcond", display_from;
+      ward_variant = "pcond", display_from, envmap;
+  double rotate_deg = 0, env_intensity = 1;
+  bool envmap_stretch = false;
+  int env_samples = 256;
   std::optional<double> display_ev;
   std::vector<std::string> lights;
   double exposure_s = 0, fps = 12;
@@ -160,6 +166,19 @@ void AddRenderOptions(CLI::App& app, RenderArgs* a) {
   app.add_option("--tonemap", a->tonemap_name,
                  "tone mapping for a picture: ward (histogram adjustment), linear, reinhard, "
                  "drago, mantiuk (default for pictures: ward)");
+  app.add_option("--envmap", a->envmap,
+                 "light the scene by a latitude-longitude HDR environment (.hdr/.exr, 2:1; its "
+                 "centre faces the camera), restricted to the directions the model answers");
+  app.add_flag("--envmap-stretch", a->envmap_stretch,
+               "--envmap: resample an image that is not 2:1 onto the lat-long grid (a stand-in "
+               "environment such as a photograph; not a real panorama)");
+  app.add_option("--rotate", a->rotate_deg, "--envmap: turn the map about the vertical axis (deg, as a lamp's H)");
+  app.add_option("--intensity", a->env_intensity, "--envmap: scale its radiance (default 1)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--samples", a->env_samples,
+                 "--envmap on a PCA/neural model (or sRGB/log-space harmonic): lamps drawn by "
+                 "importance sampling (default 256, seeded)")
+      ->check(CLI::Range(1, 1000000));
   app.add_option("--ward-variant", a->ward_variant,
                  "ward: pcond (default, as Radiance's pcond) or paper (1-degree samples only)");
   app.add_option("--display-ev", a->display_ev,
@@ -183,7 +202,10 @@ Error Bad(const std::string& what, const std::string& msg) {
 
 // The lamps, the sweep and the output, checked before anything is read.
 Result<RelightRequest> RequestFromArgs(const RenderArgs& a) {
-  if (a.lights.empty() && a.sweep_text.empty()) return Bad("--light", "give at least one --light or a --sweep");
+  if (a.lights.empty() && a.sweep_text.empty() && a.envmap.empty()) {
+    return Bad("--light", "give at least one --light, a --sweep or an --envmap");
+  }
+  if (!a.envmap.empty() && !a.sweep_text.empty()) return Bad("--envmap", "an environment map renders one frame, not a --sweep");
   RelightRequest request;
   for (const auto& text : a.lights) {
     RIG_ASSIGN_OR_RETURN(RelightLamp l, ParseLamp(text));
@@ -233,6 +255,24 @@ Status ApplySource(const RenderArgs& a, const RenderSource& source, RelightReque
   }
   request->tonemap.srgb = true;
   RIG_ASSIGN_OR_RETURN(request->tonemap.ward_variant, ParseWardVariant(a.ward_variant));
+  if (!a.envmap.empty()) {
+    if (a.envmap_stretch) {
+      RIG_ASSIGN_OR_RETURN(cv::Mat photo, ReadRadianceFile(a.envmap));
+      if (!photo.empty() && photo.cols != 2 * photo.rows) {
+        cv::resize(photo, photo, cv::Size(2 * photo.rows, photo.rows), 0, 0, cv::INTER_AREA);
+        std::printf("rig render: %s stretched to %dx%d for --envmap (a stand-in, not a panorama)\n",
+                    a.envmap.c_str(), photo.cols, photo.rows);
+      }
+      RIG_TRY(CheckEnvironmentMap(photo, a.envmap));
+      request->envmap = photo;
+    } else {
+      RIG_ASSIGN_OR_RETURN(request->envmap, LoadEnvironmentMap(a.envmap));
+    }
+    request->envmap_options.rotate_deg = a.rotate_deg;
+    request->envmap_options.intensity = a.env_intensity;
+    request->envmap_options.samples = a.env_samples;
+    request->envmap_options.extrapolate = a.extrapolate;
+  }
   if (!a.display_from.empty()) {
     auto reference = ReadRadianceFile(a.display_from);
     if (!reference.ok()) return reference.error().Within("--display-from");
@@ -269,7 +309,18 @@ int RunRender(int argc, char** argv) {
   }
   auto source = ResolveRenderSource(a.source, a.response_option);
   if (!source.ok()) return ReportError("render", source.error());
-  auto model = LoadAnyModel(source->model_path);
+  // A harmonic model's coefficients are kept for --envmap's projection.
+  std::optional<Model> harmonic;
+  Result<std::unique_ptr<ReflectanceModel>> model =
+      MakeError(ErrorCode::kInternal, source->model_path, "not loaded");
+  if (!a.envmap.empty() && fs::path(source->model_path).extension() == ".exr") {
+    auto m = LoadModel(source->model_path);
+    if (!m.ok()) return ReportError("render", m.error());
+    harmonic = *m;
+    model = WrapHarmonic(*m);
+  } else {
+    model = LoadAnyModel(source->model_path);
+  }
   if (!model.ok()) return ReportError("render", model.error());
   if (Status st = ApplySource(a, *source, &*request); !st.ok()) return ReportError("render", st.error());
 
@@ -278,8 +329,20 @@ int RunRender(int argc, char** argv) {
       a.tonemap_name.empty()) {
     request->display = RenderDisplay::kEncoded;
   }
+  if (harmonic) request->harmonic = &*harmonic;
   auto output = Relight(**model, *request);
   if (!output.ok()) return ReportError("render", output.error());
+  if (output->envmap) {
+    const EnvmapRender& e = *output->envmap;
+    std::printf("rig render: environment %s (%dx%d working map): %s; %.1f%% of its energy lies "
+                "outside the directions the model answers%s\n",
+                a.envmap.c_str(), e.map_width, e.map_height,
+                e.projected ? fmt::format("projected onto the {} basis terms", e.terms).c_str()
+                            : fmt::format("{} importance samples ({} distinct lamps, seed 1)",
+                                          e.samples, e.distinct_lamps).c_str(),
+                100 * e.outside_energy_fraction,
+                a.extrapolate ? " (extrapolated)" : " (left out; --extrapolate uses it)");
+  }
   auto files = WriteRender(*output, *request, a.out, a.fps);
   if (!files.ok()) return ReportError("render", files.error());
   if (files->filled_pixels > 0) {
@@ -292,7 +355,8 @@ int RunRender(int argc, char** argv) {
 
   if (request->sweep.empty()) {
     const size_t n = request->lamps.size();
-    std::printf("rig render: wrote %s (%zu lamp%s%s)\n", a.out.c_str(), n, n == 1 ? "" : "s",
+    std::printf("rig render: wrote %s (%zu lamp%s%s%s)\n", a.out.c_str(), n, n == 1 ? "" : "s",
+                request->envmap.empty() ? "" : " and the environment",
                 request->display == RenderDisplay::kExposure ? fmt::format(", exposure {} s", a.exposure_s).c_str()
                 : request->display == RenderDisplay::kRadiance ? ", linear radiance"
                 : request->display == RenderDisplay::kEncoded
