@@ -7,6 +7,9 @@
 #include <random>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "process/io/exr_io.h"
 
 #include "process/model/light_direction.h"
 #include "tests/support/run_rig.h"
@@ -154,6 +157,85 @@ TEST(Relight, OutputKindsFollowTheExtension) {
   EXPECT_EQ(RenderFileKindOf("b.bmp"), RenderFileKind::kUnknown);
   EXPECT_EQ(SweepFrameDir("out/s.avi"), "out/s");
   EXPECT_EQ(SweepFrameDir("out/s.exr"), "out/s");
+}
+
+}  // namespace
+}  // namespace rig
+
+namespace rig {
+namespace {
+
+TEST(Relight, FlaggedPixelsAreFilledFromNeighboursInPicturesAndStayFlaggedInExr) {
+  Model model = SyntheticModel();
+  model.valid() = cv::Mat(16, 24, CV_8U, cv::Scalar(1));
+  model.valid().at<uint8_t>(5, 7) = 0;
+  model.valid().at<uint8_t>(5, 8) = 0;
+  RelightRequest request;
+  request.lamps = {Lamp(40, 10)};
+  request.display = RenderDisplay::kToneMap;
+  auto out = Relight(*WrapHarmonic(model), request);
+  ASSERT_TRUE(out.ok()) << out.error().ToString();
+  EXPECT_EQ(out->radiance[0].at<cv::Vec3f>(5, 7), cv::Vec3f(0, 0, 0));
+  const std::string dir = testing::FreshTempDir("relight-fill");
+  auto png = WriteRender(*out, request, dir + "/a.png", 12);
+  ASSERT_TRUE(png.ok()) << png.error().ToString();
+  EXPECT_EQ(png->filled_pixels, 2u);
+  cv::Mat pic = cv::imread(dir + "/a.png");
+  ASSERT_FALSE(pic.empty());
+  // Filled: as bright as its neighbours (no black speck).
+  const double neighbour = pic.at<cv::Vec3b>(4, 7)[1], filled = pic.at<cv::Vec3b>(5, 7)[1];
+  EXPECT_GT(filled, 0.8 * neighbour);
+  EXPECT_LT(filled, 1.2 * neighbour + 2);
+  request.display = RenderDisplay::kRadiance;
+  auto exr = WriteRender(*out, request, dir + "/a.exr", 12);
+  ASSERT_TRUE(exr.ok());
+  EXPECT_EQ(exr->filled_pixels, 0u);
+  auto back = ReadRgbExr(dir + "/a.exr");
+  ASSERT_TRUE(back.ok());
+  EXPECT_EQ(back->at<cv::Vec3f>(5, 7), cv::Vec3f(0, 0, 0));  // still flagged in radiance
+  size_t n = 0;
+  const cv::Mat f = FillFlaggedPixels(out->radiance[0], model.valid(), &n);
+  EXPECT_EQ(n, 2u);
+  EXPECT_GT(f.at<cv::Vec3f>(5, 8)[1], 0);
+  EXPECT_EQ(f.at<cv::Vec3f>(0, 0), out->radiance[0].at<cv::Vec3f>(0, 0));  // valid untouched
+  fs::remove_all(dir);
+}
+
+TEST(Relight, DirectionLampsBypassTheLightFrameAndAzimuthElevationIsTheImagePlaneConvention) {
+  Model model = SyntheticModel();
+  model.info().light_frame.h_offset_deg = 10;  // a rig whose H is off by 10°
+  RelightLamp by_angles = Lamp(30, 15);
+  RelightLamp by_dir;
+  by_dir.direction = LightDirection(30, 15, model.info().light_frame);
+  EXPECT_LT(cv::norm(RenderOne(model, {by_angles}), RenderOne(model, {by_dir}), cv::NORM_INF), 1e-6);
+  RelightLamp raw;
+  raw.direction = LightDirection(30, 15);  // without the frame: a different light
+  EXPECT_GT(cv::norm(RenderOne(model, {by_angles}), RenderOne(model, {raw}), cv::NORM_INF), 1e-3);
+  const Vec3 up = AzimuthElevationDirection(90, 0), top = AzimuthElevationDirection(0, 90);
+  EXPECT_NEAR(up[1], 1, 1e-12);   // azimuth 90°: +y (up in the image)
+  EXPECT_NEAR(top[2], 1, 1e-12);  // elevation 90°: from the camera
+  EXPECT_EQ(LampName(by_angles), "30,15");
+  EXPECT_EQ(LampName(raw).rfind("dir=", 0), 0u);
+}
+
+TEST(Relight, IntensityShowsThroughTheCurveOfTheUnitLamps) {
+  const Model model = SyntheticModel();
+  RelightRequest request;
+  request.display = RenderDisplay::kToneMap;
+  request.tonemap.srgb = true;
+  request.lamps = {Lamp(40, 10)};
+  auto one = Relight(*WrapHarmonic(model), request);
+  request.lamps = {Lamp(40, 10, {1, 1, 1}, 2)};
+  auto two = Relight(*WrapHarmonic(model), request);
+  ASSERT_TRUE(one.ok() && two.ok());
+  EXPECT_FALSE(one->tonemap.ward_fixed);  // intensity 1: as before, the image's own curve
+  ASSERT_TRUE(two->tonemap.ward_fixed);
+  auto p1 = RenderPicture(one->radiance[0], request, one->tonemap);
+  auto p2 = RenderPicture(two->radiance[0], request, two->tonemap);
+  auto p2_own = ToneMap(two->radiance[0], request.tonemap);
+  ASSERT_TRUE(p1.ok() && p2.ok() && p2_own.ok());
+  EXPECT_GT(cv::mean(*p2)[1], cv::mean(*p1)[1] + 5);
+  EXPECT_LT(std::abs(cv::mean(*p2_own)[1] - cv::mean(*p1)[1]), 1.0);  // what Ward alone does
 }
 
 }  // namespace

@@ -1,0 +1,198 @@
+// `rig render`'s pictures as a photographer expects them: an 8-bit capture renders at one of
+// its own lights as bright as its photo, lamp intensity changes the picture (and a fixed
+// display makes pictures comparable), the --light forms (dir=, az=/el=) agree with each
+// other, and --envmap refuses bad maps naming the file with exit 2.
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "process/io/exr_io.h"
+#include "tests/support/run_rig.h"
+
+namespace rig {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+using testing::RunRig;
+
+cv::Mat ReadGrey(const std::string& path) {
+  cv::Mat img = cv::imread(path, cv::IMREAD_COLOR), grey;
+  if (img.empty()) return img;
+  cv::cvtColor(img, grey, cv::COLOR_BGR2GRAY);
+  return grey;
+}
+
+class RenderDisplay : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new std::string(testing::FreshTempDir("render-display"));
+    const std::string cfg = testing::WriteSimConfig(*dir_, R"([sim]
+width = 96
+height = 72
+scene = 'gloss'
+)");
+    session_ = new std::string(*dir_ + "/S");
+    auto r = RunRig("capture --config " + cfg + " --out " + *session_ + " --dry-run --no-progress");
+    ASSERT_EQ(r.status, 0) << r.output;
+  }
+  static void TearDownTestSuite() {
+    fs::remove_all(*dir_);
+    delete dir_;
+    delete session_;
+  }
+  static std::string Out(const std::string& name) { return *dir_ + "/" + name; }
+  static std::string* dir_;
+  static std::string* session_;
+};
+std::string* RenderDisplay::dir_ = nullptr;
+std::string* RenderDisplay::session_ = nullptr;
+
+TEST_F(RenderDisplay, LampIntensityChangesThePictureAndAFixedDisplayMakesPicturesCompare) {
+  ASSERT_EQ(RunRig("render " + *session_ + " --light 45,20 --out " + Out("one.png")).status, 0);
+  auto r = RunRig("render " + *session_ + " --light 45,20,1,1,1,4 --out " + Out("four.png"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("intensity 1"));
+  const cv::Mat one = ReadGrey(Out("one.png")), four = ReadGrey(Out("four.png"));
+  ASSERT_FALSE(one.empty());
+  ASSERT_FALSE(four.empty());
+  EXPECT_GT(cv::mean(four)[0], cv::mean(one)[0] + 20);  // two stops brighter, through one curve
+  // The same picture through the curve of a reference render of the unit lamp.
+  ASSERT_EQ(RunRig("render " + *session_ + " --light 45,20 --out " + Out("ref.exr")).status, 0);
+  r = RunRig("render " + *session_ + " --light 45,20,1,1,1,4 --display-from " + Out("ref.exr") +
+             " --out " + Out("four-ref.png"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_LT(std::abs(cv::mean(ReadGrey(Out("four-ref.png")))[0] - cv::mean(four)[0]), 1.0);
+  // --display-ev: linear, 2 EV more is twice... four times the linear value before encoding.
+  ASSERT_EQ(RunRig("render " + *session_ + " --light 45,20 --display-ev -2 --out " + Out("ev-2.png")).status, 0);
+  ASSERT_EQ(RunRig("render " + *session_ + " --light 45,20,1,1,1,4 --display-ev -4 --out " + Out("ev-4.png")).status, 0);
+  const cv::Mat a = ReadGrey(Out("ev-2.png")), b = ReadGrey(Out("ev-4.png"));
+  EXPECT_LE(cv::norm(a, b, cv::NORM_INF), 1.0);  // 4 × 2^-4 == 1 × 2^-2
+  ASSERT_EQ(RunRig("render " + *session_ + " --light 45,20 --display-ev -4 --out " + Out("ev-4b.png")).status, 0);
+  EXPECT_GT(cv::mean(a)[0], cv::mean(ReadGrey(Out("ev-4b.png")))[0] + 20);
+  // Bad uses: with an .exr, or both fixed displays.
+  EXPECT_EQ(RunRig("render " + *session_ + " --light 45,20 --display-ev 0 --out " + Out("x.exr")).status, 2);
+  EXPECT_EQ(RunRig("render " + *session_ + " --light 45,20 --display-ev 0 --display-from " +
+                   Out("ref.exr") + " --out " + Out("x.png")).status, 2);
+}
+
+TEST_F(RenderDisplay, SweepFramesShareOneScaleSoTheyDoNotFlicker) {
+  auto r = RunRig("render " + *session_ + " --sweep 10,20:80,20 --frames 4 --out " + Out("sw.exr"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  r = RunRig("render " + *session_ + " --sweep 10,20:80,20 --frames 4 --out " + Out("swp.png"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  // Picture (decoded from sRGB) over radiance: one factor for every unclipped pixel of every
+  // frame (a per-frame operator would give each frame its own).
+  std::vector<double> factors;
+  for (int f = 0; f < 4; ++f) {
+    auto rad = ReadRgbExr(Out("sw") + "/frame_000" + std::to_string(f) + ".exr");
+    ASSERT_TRUE(rad.ok());
+    cv::Mat pic = cv::imread(Out("swp") + "/frame_000" + std::to_string(f) + ".png");
+    ASSERT_FALSE(pic.empty());
+    double num = 0, den = 0;
+    for (int y = 0; y < pic.rows; ++y)
+      for (int x = 0; x < pic.cols; ++x) {
+        const int code = pic.at<cv::Vec3b>(y, x)[1];
+        if (code < 20 || code > 235) continue;
+        const double e = code / 255.0;
+        num += e <= 0.04045 ? e / 12.92 : std::pow((e + 0.055) / 1.055, 2.4);
+        den += rad->at<cv::Vec3f>(y, x)[1];
+      }
+    ASSERT_GT(den, 0);
+    factors.push_back(num / den);
+  }
+  for (double f : factors) EXPECT_NEAR(f / factors[0], 1.0, 0.02);
+}
+
+TEST_F(RenderDisplay, EnvmapBadInputIsRefusedNamingTheFileWithExitTwo) {
+  cv::Mat square(16, 16, CV_32FC3, cv::Scalar::all(1));
+  ASSERT_TRUE(cv::imwrite(Out("square.hdr"), square));
+  auto r = RunRig("render " + *session_ + " --envmap " + Out("square.hdr") + " --out " + Out("e1.png"));
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.output, HasSubstr("square.hdr"));
+  EXPECT_THAT(r.output, HasSubstr("2:1"));
+  cv::Mat nan(16, 32, CV_32FC3, cv::Scalar::all(1));
+  nan.at<cv::Vec3f>(4, 4)[0] = std::numeric_limits<float>::quiet_NaN();
+  ASSERT_TRUE(WriteRgbExr(Out("nan.exr"), nan, {}).ok());
+  r = RunRig("render " + *session_ + " --envmap " + Out("nan.exr") + " --out " + Out("e2.png"));
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.output, HasSubstr("nan.exr"));
+  cv::Mat neg(16, 32, CV_32FC3, cv::Scalar::all(1));
+  neg.at<cv::Vec3f>(4, 4)[2] = -1;
+  ASSERT_TRUE(WriteRgbExr(Out("neg.exr"), neg, {}).ok());
+  r = RunRig("render " + *session_ + " --envmap " + Out("neg.exr") + " --out " + Out("e3.png"));
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.output, HasSubstr("negative"));
+  { std::ofstream(Out("junk.hdr")) << "junk"; }
+  r = RunRig("render " + *session_ + " --envmap " + Out("junk.hdr") + " --out " + Out("e4.png"));
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.output, HasSubstr("junk.hdr"));
+  EXPECT_FALSE(fs::exists(Out("e1.png")) || fs::exists(Out("e4.png")));
+  // A good map renders and says how much of it the model could not answer.
+  cv::Mat sky(64, 128, CV_32FC3, cv::Scalar::all(0.5));
+  ASSERT_TRUE(WriteRgbExr(Out("sky.exr"), sky, {}).ok());
+  r = RunRig("render " + *session_ + " --envmap " + Out("sky.exr") + " --out " + Out("sky.png"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("outside the directions the model answers"));
+  EXPECT_THAT(r.output, HasSubstr("projected onto the"));
+}
+
+TEST(RenderLp, EightBitCaptureRendersAtItsOwnLightAsBrightAsItsPhoto) {
+  const std::string data = testing::SharedDir() + "/data/rti/neuralrti-example";
+  if (!fs::exists(data + "/dirs.lp")) GTEST_SKIP() << data << " is not here";
+  const std::string dir = testing::FreshTempDir("render-lp");
+  auto r = RunRig("fit --lp " + data + "/dirs.lp --downsample 4 --out " + dir + "/icon");
+  ASSERT_EQ(r.status, 0) << r.output;
+  std::ifstream lp(data + "/dirs.lp");
+  int count = 0;
+  lp >> count;
+  double worst = 0;
+  for (int i = 0; i < 3; ++i) {  // the first three of the capture's own lights
+    std::string image;
+    double x, y, z;
+    lp >> image >> x >> y >> z;
+    if (i == 1) continue;
+    std::ostringstream light;
+    light.precision(17);
+    light << "dir=" << x << "," << y << "," << z;
+    const std::string out = dir + "/l" + std::to_string(i) + ".png";
+    r = RunRig("render " + dir + "/icon --light " + light.str() + " --out " + out);
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("sRGB as the photographs"));
+    cv::Mat photo = ReadGrey(data + "/" + image), small;
+    cv::resize(photo, small, cv::Size(photo.cols / 4, photo.rows / 4), 0, 0, cv::INTER_AREA);
+    const double m_render = cv::mean(ReadGrey(out))[0], m_photo = cv::mean(small)[0];
+    std::printf("%s: photo mean %.1f, render mean %.1f\n", image.c_str(), m_photo, m_render);
+    worst = std::max(worst, std::abs(m_render - m_photo));
+  }
+  EXPECT_LT(worst, 4.0);  // codes of 255 (Ward gave ~91 against the photos' ~172)
+  // The other --light forms: az=/el= is the same direction as dir=.
+  const double az = 30, el = 50, d2r = M_PI / 180;
+  std::ostringstream dir_form;
+  dir_form.precision(17);
+  dir_form << "dir=" << std::cos(el * d2r) * std::cos(az * d2r) << ","
+           << std::cos(el * d2r) * std::sin(az * d2r) << "," << std::sin(el * d2r);
+  ASSERT_EQ(RunRig("render " + dir + "/icon --light az=30,el=50 --out " + dir + "/az.exr").status, 0);
+  ASSERT_EQ(RunRig("render " + dir + "/icon --light " + dir_form.str() + " --out " + dir + "/dir.exr").status, 0);
+  auto a = ReadRgbExr(dir + "/az.exr"), b = ReadRgbExr(dir + "/dir.exr");
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_LE(cv::norm(*a, *b, cv::NORM_INF), 1e-3);
+  ASSERT_EQ(RunRig("render " + dir + "/icon --light az=210,el=50 --out " + dir + "/az2.exr").status, 0);
+  auto c = ReadRgbExr(dir + "/az2.exr");
+  ASSERT_TRUE(c.ok());
+  EXPECT_GT(cv::norm(*a, *c, cv::NORM_INF), 0.05);  // the opposite azimuth lights differently
+  // Bad forms: not a unit vector, az without el, elevation out of range.
+  EXPECT_EQ(RunRig("render " + dir + "/icon --light dir=1,1,1 --out " + dir + "/x.png").status, 2);
+  EXPECT_EQ(RunRig("render " + dir + "/icon --light az=30 --out " + dir + "/x.png").status, 2);
+  EXPECT_EQ(RunRig("render " + dir + "/icon --light az=30,el=95 --out " + dir + "/x.png").status, 2);
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace rig
