@@ -3,6 +3,7 @@
 #include "process/render/envmap.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <map>
 #include <numbers>
@@ -132,6 +133,11 @@ Result<EnvmapRender> RenderEnvironment(const ReflectanceModel& model, const Mode
     return MakeError(ErrorCode::kInvalidInput, "environment map",
                      "intensity must be >= 0, samples >= 1 and max_width >= 4");
   }
+  using Clock = std::chrono::steady_clock;
+  const auto t0 = Clock::now();
+  auto seconds = [](Clock::time_point a, Clock::time_point b) {
+    return std::chrono::duration<double>(b - a).count();
+  };
   cv::Mat map = full_map;
   if (map.cols > o.max_width) {
     const int w = o.max_width - o.max_width % 2;
@@ -160,7 +166,10 @@ Result<EnvmapRender> RenderEnvironment(const ReflectanceModel& model, const Mode
       for (int k = 0; k < basis.size(); ++k)
         for (int c = 0; c < 3; ++c) p[k][c] += b[k] * t.rgb_sa[c];
     }
+    const auto t1 = Clock::now();
     out.radiance = DotWithProjection(*harmonic, p);
+    out.prepare_s = seconds(t0, t1);
+    out.pixels_s = seconds(t1, Clock::now());
     out.projected = true;
     out.terms = basis.size();
     return out;
@@ -188,6 +197,7 @@ Result<EnvmapRender> RenderEnvironment(const ReflectanceModel& model, const Mode
     const size_t k = std::min(cdf.size() - 1, static_cast<size_t>(std::upper_bound(cdf.begin(), cdf.end(), u) - cdf.begin()));
     ++drawn[index[k]];
   }
+  const auto t1 = Clock::now();
   cv::Mat radiance;
   for (const auto& [i, count] : drawn) {
     const Texel& t = texels[i];
@@ -196,6 +206,8 @@ Result<EnvmapRender> RenderEnvironment(const ReflectanceModel& model, const Mode
     model.AddLamp(t.dir, {t.rgb_sa[0] * f, t.rgb_sa[1] * f, t.rgb_sa[2] * f}, &radiance);
   }
   out.radiance = radiance;
+  out.prepare_s = seconds(t0, t1);
+  out.pixels_s = seconds(t1, Clock::now());
   out.distinct_lamps = static_cast<int>(drawn.size());
   return out;
 }

@@ -46,6 +46,9 @@ struct EnvmapRender {
   // Of the map's luminance × solid angle: the part outside the directions the model answers
   // (left out unless extrapolate).
   double outside_energy_fraction = 0;
+  // Wall time: the map's preparation (resampling, directions, region, projection or the
+  // sampling's distribution) and the per-pixel part (dot products, or the lamps summed).
+  double prepare_s = 0, pixels_s = 0;
 };
 
 // Reads and checks a map: .hdr/.pic/.exr, 2:1 (width == 2 · height), every value finite and
