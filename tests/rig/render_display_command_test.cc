@@ -196,3 +196,27 @@ TEST(RenderLp, EightBitCaptureRendersAtItsOwnLightAsBrightAsItsPhoto) {
 
 }  // namespace
 }  // namespace rig
+
+namespace rig {
+namespace {
+
+TEST(TonemapWardVariant, PcondIsTheDefaultPaperIsNamedAndUnknownIsRefused) {
+  const std::string hdr = testing::SharedDir() + "/data/hdr/mpi_atrium_3.hdr";
+  if (!fs::exists(hdr)) GTEST_SKIP() << hdr << " is not here";
+  const std::string dir = testing::FreshTempDir("tonemap-variant");
+  ASSERT_EQ(RunRig("tonemap " + hdr + " --out " + dir + "/pcond.png").status, 0);
+  ASSERT_EQ(RunRig("tonemap " + hdr + " --ward-variant pcond --out " + dir + "/pcond2.png").status, 0);
+  ASSERT_EQ(RunRig("tonemap " + hdr + " --ward-variant paper --out " + dir + "/paper.png").status, 0);
+  const cv::Mat a = ReadGrey(dir + "/pcond.png"), b = ReadGrey(dir + "/pcond2.png"),
+                c = ReadGrey(dir + "/paper.png");
+  ASSERT_FALSE(a.empty() || b.empty() || c.empty());
+  EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0);  // seeded: the same picture every run
+  EXPECT_GT(cv::mean(a)[0], cv::mean(c)[0] + 2);  // pcond's curve is brighter on the atrium
+  auto r = RunRig("tonemap " + hdr + " --ward-variant nope --out " + dir + "/x.png");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.output, HasSubstr("nope"));
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace rig
