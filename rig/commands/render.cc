@@ -166,19 +166,23 @@ void AddRenderOptions(CLI::App& app, RenderArgs* a) {
   app.add_option("--tonemap", a->tonemap_name,
                  "tone mapping for a picture: ward (histogram adjustment), linear, reinhard, "
                  "drago, mantiuk (default for pictures: ward)");
-  app.add_option("--envmap", a->envmap,
+  auto* envmap = app.add_option("--envmap", a->envmap,
                  "light the scene by a latitude-longitude HDR environment (.hdr/.exr, 2:1; its "
                  "centre faces the camera), restricted to the directions the model answers");
   app.add_flag("--envmap-stretch", a->envmap_stretch,
                "--envmap: resample an image that is not 2:1 onto the lat-long grid (a stand-in "
-               "environment such as a photograph; not a real panorama)");
-  app.add_option("--rotate", a->rotate_deg, "--envmap: turn the map about the vertical axis (deg, as a lamp's H)");
+               "environment such as a photograph; not a real panorama)")
+      ->needs(envmap);
+  app.add_option("--rotate", a->rotate_deg, "--envmap: turn the map about the vertical axis (deg, as a lamp's H)")
+      ->needs(envmap);
   app.add_option("--intensity", a->env_intensity, "--envmap: scale its radiance (default 1)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::NonNegativeNumber)
+      ->needs(envmap);
   app.add_option("--samples", a->env_samples,
                  "--envmap on a PCA/neural model (or sRGB/log-space harmonic): lamps drawn by "
                  "importance sampling (default 256, seeded)")
-      ->check(CLI::Range(1, 1000000));
+      ->check(CLI::Range(1, 1000000))
+      ->needs(envmap);
   app.add_option("--ward-variant", a->ward_variant,
                  "ward: pcond (default, as Radiance's pcond) or paper (1-degree samples only)");
   app.add_option("--display-ev", a->display_ev,
@@ -326,7 +330,7 @@ int RunRender(int argc, char** argv) {
 
   // A model of 8-bit photographs renders, unless asked otherwise, as the photographs were.
   if ((*model)->encoding() == ValueEncoding::kSrgb && request->display == RenderDisplay::kToneMap &&
-      a.tonemap_name.empty()) {
+      a.tonemap_name.empty() && a.display_from.empty()) {
     request->display = RenderDisplay::kEncoded;
   }
   if (harmonic) request->harmonic = &*harmonic;
