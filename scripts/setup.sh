@@ -14,6 +14,8 @@ packages=(
   # infrastructure
   libspdlog-dev libfmt-dev libtomlplusplus-dev libcli11-dev nlohmann-json3-dev
   zlib1g-dev
+  # collections (rig collection: share/rig/Snakefile)
+  snakemake
   # tests and benchmarks (libltdl-dev, xz-utils: building libgphoto2's virtual camera)
   libgtest-dev libgmock-dev libbenchmark-dev libltdl-dev xz-utils
 )

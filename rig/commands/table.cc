@@ -4,6 +4,7 @@
 namespace rig {
 
 int RunExport(int argc, char** argv);  // rig/commands/export.cc
+int RunCollection(int argc, char** argv);  // rig/commands/collection.cc
 
 const std::vector<Command>& Commands() {
   static const std::vector<Command> kCommands = {
@@ -18,6 +19,7 @@ const std::vector<Command>& Commands() {
       {"evaluate", "speed against accuracy of every method: tables, charts, stability report", RunEvaluate},
       {"export", "write a model in relight's web format, or as a .ptm or .rti file", RunExport},
       {"tonemap", "tone-map an HDR image (.exr, .hdr) for a screen", RunTonemap},
+      {"collection", "many sessions and .lp captures through a Snakemake workflow: init, report", RunCollection},
   };
   return kCommands;
 }
