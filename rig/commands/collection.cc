@@ -427,7 +427,8 @@ int RunReport(int argc, char** argv) {
     std::string loo;
     if (std::isfinite(r.loo_psnr_db)) loo = fmt::format("{:.2f} dB PSNR", r.loo_psnr_db);
     if (std::isfinite(r.loo_rms_fit_space)) loo = fmt::format("RMS {:.4g} (fit space)", r.loo_rms_fit_space);
-    if (std::isfinite(r.eval_loo_rel)) loo += fmt::format("; evaluate: {:.4f} relative", r.eval_loo_rel);
+    if (std::isfinite(r.eval_loo_rel))
+      loo += fmt::format("{}evaluate: {:.4f} relative", loo.empty() ? "" : "; ", r.eval_loo_rel);
     const std::string page = r.page.empty() ? "" : "[page](../" + r.page + ")";
     md += fmt::format("| {} | {} | {} | {} | {} | {} | {} / {} | {} | {} |\n", r.name, r.kind, r.model,
                       Cell(r.bpp, 2), loo, Cell(r.fit_time_s, 2), Cell(r.job_wall_s, 2),
