@@ -18,6 +18,8 @@ packages=(
   snakemake
   # tests and benchmarks (libltdl-dev, xz-utils: building libgphoto2's virtual camera)
   libgtest-dev libgmock-dev libbenchmark-dev libltdl-dev xz-utils
+  # the relighting page's browser test (rig view): a headless browser, a loopback HTTP server
+  chromium libcpp-httplib-dev
 )
 
 missing=()

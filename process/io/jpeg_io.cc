@@ -267,6 +267,7 @@ Result<std::unique_ptr<JpegReader>> JpegReader::Open(const std::string& path) {
 int JpegReader::width() const { return static_cast<int>(state_->cinfo.output_width); }
 int JpegReader::height() const { return static_cast<int>(state_->cinfo.output_height); }
 int JpegReader::channels() const { return state_->cinfo.output_components; }
+bool JpegReader::rgb_space() const { return state_->cinfo.jpeg_color_space == JCS_RGB; }
 
 Status JpegReader::Read(int count, cv::Mat* rows) {
   State& s = *state_;

@@ -55,6 +55,8 @@ class JpegReader {
   int width() const;
   int height() const;
   int channels() const;
+  // The file's own colour space is RGB (an Adobe marker, no YCbCr transform).
+  bool rgb_space() const;
   // Reads the next `count` rows into *rows (CV_8UC(channels), resized as needed).
   Status Read(int count, cv::Mat* rows);
 

@@ -42,6 +42,7 @@ int RunProcess(int argc, char** argv);
 int RunFit(int argc, char** argv);
 int RunRender(int argc, char** argv);
 int RunTonemap(int argc, char** argv);
+int RunView(int argc, char** argv);     // rig/commands/view.cc
 int RunHdr(int argc, char** argv);
 int RunRatioCheck(int argc, char** argv);
 int RunEvaluate(int argc, char** argv);

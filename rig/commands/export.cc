@@ -20,6 +20,7 @@
 #include "process/io/exr_io.h"
 #include "process/model/fit.h"
 #include "process/export/convert.h"
+#include "process/export/deepzoom.h"
 #include "process/export/load_any.h"
 #include "process/export/relight_files.h"
 #include "process/model/model.h"
@@ -31,7 +32,7 @@ namespace {
 namespace fs = std::filesystem;
 
 struct ExportArgs {
-  std::string source, format, out, variant = "rgb", basis, log_level;
+  std::string source, format, out, variant = "rgb", basis, log_level, tiles = "auto";
   int hsh_terms = 0, quality = 95;
   bool jpeg_rgb = false;
 };
@@ -148,6 +149,18 @@ int ExportSessionLp(const ExportArgs& a) {
   return 0;
 }
 
+// Deep-zoom tiles of a written web-format folder, by --tiles.
+int WriteTilesIfWanted(const ExportArgs& a, int width, int height) {
+  if (a.tiles == "off" || (a.tiles == "auto" && !WantsDeepZoom(width, height))) return 0;
+  DeepZoomOptions o;
+  o.quality = a.quality;
+  auto report = WriteDeepZoom(a.out, o);
+  if (!report.ok()) return ReportError("export", report.error());
+  std::printf("  deep zoom: %d plane files x %d levels, %ld tiles of %d px (overlap %d) in %.2f s\n",
+              report->files, report->levels, report->tiles, o.tile_size, o.overlap, report->seconds);
+  return 0;
+}
+
 }  // namespace
 
 int RunExport(int argc, char** argv) {
@@ -177,6 +190,10 @@ int RunExport(int argc, char** argv) {
                "~2x the bytes). Not for relight's C++ reader, which decodes every plane as YCbCr "
                "(Rti::load); browsers and libjpeg's default honour the marker. Default: YCbCr 4:4:4, "
                "as relight writes rgb planes");
+  app.add_option("--tiles", a.tiles,
+                 "--format relight: deep-zoom tiles (plane_N.dzi + plane_N_files/, 256 px, overlap 1) "
+                 "beside the planes: auto (longer side > 4096), on, off")
+      ->check(CLI::IsMember({"auto", "on", "off"}));
   AddLogLevelOption(app, &a.log_level);
   if (auto rc = ParseCommandLine(app, argc, argv)) return *rc;
   if (auto rc = ApplyLogLevel(a.log_level)) return *rc;
@@ -230,7 +247,7 @@ int RunExport(int argc, char** argv) {
       std::printf("rig export: wrote %s (relight web format, bilinear mrgb, as the model is "
                   "stored: nothing refitted, nothing lost)\n  from %s: %s\n",
                   a.out.c_str(), path.c_str(), model->Describe().c_str());
-      return 0;
+      return WriteTilesIfWanted(a, model->width(), model->height());
     }
     const RelightCoefficients* rc = RelightCoefficientsOf(*model);
     auto target = TargetFor(a, model->family(), rc ? rc->terms : 0);
@@ -299,6 +316,7 @@ int RunExport(int argc, char** argv) {
     std::printf("  note: rho was scaled by %.4g to fit 8-bit values (relight stores display values)\n",
                 conversion->gain);
   }
+  if (a.format == "relight") return WriteTilesIfWanted(a, c.width, c.height);
   return 0;
 }
 

@@ -20,6 +20,7 @@ const std::vector<Command>& Commands() {
       {"export", "write a model in relight's web format, or as a .ptm or .rti file", RunExport},
       {"tonemap", "tone-map an HDR image (.exr, .hdr) for a screen", RunTonemap},
       {"collection", "many sessions and .lp captures through a Snakemake workflow: init, report", RunCollection},
+      {"view", "write a self-contained WebGL2 relighting page for a model", RunView},
   };
   return kCommands;
 }

@@ -1,0 +1,228 @@
+// rig view MODEL --out DIR: the model in relight's web format (copied when it is one already,
+// converted as `rig export --format relight` converts otherwise), deep-zoom tiles for large
+// images, and a self-contained WebGL2 relighting page (process/export/viewer_page.h).
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <sstream>
+
+#include <fmt/format.h>
+
+#include "capture/session/render_source.h"
+#include "process/export/convert.h"
+#include "process/export/deepzoom.h"
+#include "process/export/load_any.h"
+#include "process/export/relight_files.h"
+#include "process/export/viewer_page.h"
+#include "process/model/model.h"
+#include "process/render/tonemap.h"
+#include "rig/commands/command.h"
+
+namespace rig {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ViewArgs {
+  std::string source, out, tiles = "auto", light, log_level;
+  int quality = 95;
+};
+
+Result<Vec3> ParseDirection(const std::string& text) {
+  std::vector<double> v;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    try {
+      size_t used = 0;
+      v.push_back(std::stod(item, &used));
+      if (used != item.size()) throw std::invalid_argument(item);
+    } catch (const std::exception&) {
+      return MakeError(ErrorCode::kInvalidInput, "--light " + text, "'{}' is not a number", item);
+    }
+  }
+  const double n = v.size() == 3 ? std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) : 0;
+  if (v.size() != 3 || !(n > 0)) {
+    return MakeError(ErrorCode::kInvalidInput, "--light " + text, "a direction x,y,z (not zero) expected");
+  }
+  return Vec3{v[0] / n, v[1] / n, v[2] / n};
+}
+
+Vec3 MeanDirection(const std::vector<Vec3>& lights) {
+  Vec3 m{0, 0, 0};
+  for (const auto& l : lights)
+    for (int k = 0; k < 3; ++k) m[k] += l[k];
+  const double n = std::sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
+  if (!(n > 0)) return {0, 0, 1};
+  return {m[0] / n, m[1] / n, m[2] / n};
+}
+
+Status CopyFile(const fs::path& from, const fs::path& to) {
+  std::error_code ec;
+  fs::copy_file(from, to, fs::copy_options::none, ec);
+  if (ec) return MakeError(ErrorCode::kIo, to.string(), "cannot copy from {}: {}", from.string(), ec.message());
+  return Ok();
+}
+
+// Ward's global curve for the source's radiance at `light` (as `rig render` maps it), as a
+// table of pixel luminance (before the sRGB encoding) over ln L_w.
+nlohmann::json WardDisplay(const ReflectanceModel& model, const Vec3& light, double gain,
+                           const ToneMapOptions& options) {
+  cv::Mat radiance;
+  model.AddLamp(light, {1, 1, 1}, &radiance);
+  const cv::Mat foveal = FovealLuminance(Luminance(radiance), options.field_of_view_deg);
+  std::vector<float> samples(foveal.begin<float>(), foveal.end<float>());
+  const WardMapping mapping = ComputeWardMapping(samples, options);
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (float s : samples)
+    if (s > 0 && std::isfinite(s)) lo = std::min(lo, std::log(double(s))), hi = std::max(hi, std::log(double(s)));
+  if (!(hi > lo)) lo = -10, hi = 10;
+  lo -= 2;
+  hi += 2;
+  const int n = 4096;
+  std::vector<double> lut(n);
+  for (int i = 0; i < n; ++i) lut[i] = mapping.PixelLuminance(std::exp(lo + (hi - lo) * i / (n - 1)));
+  const auto e = model.lamp_radiance_rgb();
+  return {{"encoding", "linear"}, {"gain", gain}, {"lamp_rgb", {e[0], e[1], e[2]}},
+          {"tonemap", "ward"}, {"lut_log_min", lo}, {"lut_log_max", hi}, {"lut", lut},
+          {"lut_light", {light[0], light[1], light[2]}}};
+}
+
+}  // namespace
+
+int RunView(int argc, char** argv) {
+  CLI::App app{"Write a self-contained relighting page for a model: the model in relight's web "
+               "format (copied if it is one, converted otherwise, as rig export does), deep-zoom "
+               "tiles for large images, index.html with a WebGL2 viewer. Open DIR/index.html "
+               "(untiled models open from file://; serve a tiled folder, e.g. "
+               "python3 -m http.server -d DIR --bind 127.0.0.1).",
+               "rig view"};
+  ViewArgs a;
+  app.add_option("MODEL", a.source, "a model (EXR, relight folder, PCA folder, .ptm, .rti) or a session")
+      ->required();
+  app.add_option("--out", a.out, "the folder to write; must not exist")->required();
+  app.add_option("--tiles", a.tiles, "deep-zoom tiles: auto (longer side > 4096), on, off")
+      ->check(CLI::IsMember({"auto", "on", "off"}));
+  app.add_option("--light", a.light, "the page's default lamp, a direction x,y,z (object frame); "
+                                     "default: the mean of the model's lights");
+  app.add_option("--jpeg-quality", a.quality, "quality of converted planes and of tiles (default 95)")
+      ->check(CLI::Range(1, 100));
+  AddLogLevelOption(app, &a.log_level);
+  if (auto rc = ParseCommandLine(app, argc, argv)) return *rc;
+  if (auto rc = ApplyLogLevel(a.log_level)) return *rc;
+
+  std::error_code ec;
+  if (fs::exists(a.out, ec)) {
+    return ReportError("view", MakeError(ErrorCode::kInvalidInput, a.out,
+                                         "exists; choose another --out (nothing is overwritten)"));
+  }
+  auto source = ResolveRenderSource(a.source);
+  if (!source.ok()) return ReportError("view", source.error());
+  const std::string& path = source->model_path;
+  std::string ext = fs::path(path).extension().string();
+  for (char& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+
+  std::unique_ptr<ReflectanceModel> model;
+  std::string how;
+  double gain = 1;
+  std::vector<Vec3> lights;
+  const std::string web_type = fs::is_directory(path, ec) ? RelightWebType(path) : "";
+  if (web_type == "ptm" || web_type == "hsh" || web_type == "bilinear") {
+    auto m = LoadAnyModel(path);  // checks the folder
+    if (!m.ok()) return ReportError("view", m.error());
+    model = std::move(*m);
+    fs::create_directories(a.out, ec);
+    if (ec) return ReportError("view", MakeError(ErrorCode::kIo, a.out, "cannot create: {}", ec.message()));
+    std::vector<std::string> names = {"info.json"};
+    for (int j = 0; fs::exists(fs::path(path) / fmt::format("plane_{}.jpg", j)); ++j)
+      names.push_back(fmt::format("plane_{}.jpg", j));
+    for (const auto& n : names)
+      if (Status st = CopyFile(fs::path(path) / n, fs::path(a.out) / n); !st.ok()) return ReportError("view", st.error());
+    how = fmt::format("{} web format copied as it is (nothing refitted)", web_type);
+    if (const RelightCoefficients* rc = RelightCoefficientsOf(*model)) lights = rc->lights;
+  } else {
+    RelightTarget target;
+    Result<Conversion> conversion = MakeError(ErrorCode::kInternal, "view", "not converted");
+    if (ext == ".exr") {
+      auto m = LoadModel(path);
+      if (!m.ok()) return ReportError("view", m.error());
+      const std::string family = m->basis().name();
+      target.type = family.rfind("ptm", 0) == 0 ? RelightType::kPtm : RelightType::kHsh;
+      target.terms = target.type == RelightType::kPtm ? 6 : (family == "hsh" && m->basis().size() <= 4 ? 4 : 9);
+      lights = m->info().lamp_directions;
+      conversion = ConvertToRelight(*m, target);
+      model = WrapHarmonic(std::move(*m));
+    } else {
+      auto m = LoadAnyModel(path);
+      if (!m.ok()) return ReportError("view", m.error());
+      model = std::move(*m);
+      const RelightCoefficients* rc = RelightCoefficientsOf(*model);
+      if (rc) {
+        target.type = rc->type;
+        target.terms = rc->terms;
+        target.lrgb = rc->lrgb;
+        lights = rc->lights;
+      } else {
+        target.type = RelightType::kHsh;
+        target.terms = 9;
+      }
+      conversion = ConvertToRelight(*model, target);
+    }
+    if (!conversion.ok()) return ReportError("view", conversion.error());
+    WebWriteOptions o;
+    o.quality = a.quality;
+    if (Status st = WriteRelightWeb(a.out, conversion->coefficients, o); !st.ok()) return ReportError("view", st.error());
+    auto back = ReadRelightWeb(a.out);
+    if (!back.ok()) return ReportError("view", back.error().Within("reading back what was written"));
+    const auto reread = WrapRelight(std::move(*back), a.out);
+    std::vector<Vec3> at = lights.empty() ? HemisphereDirections() : lights;
+    const double psnr = RenderPsnrDb(*model, *reread, at, conversion->gain);
+    gain = conversion->gain;
+    how = fmt::format("{}; as written, {} against the source over {} lights (8-bit sRGB)", conversion->how,
+                      std::isinf(psnr) ? std::string("identical") : fmt::format("{:.2f} dB", psnr), at.size());
+  }
+
+  ViewerPage page;
+  page.source = model->Describe();
+  if (!a.light.empty()) {
+    auto d = ParseDirection(a.light);
+    if (!d.ok()) return ReportError("view", d.error());
+    page.default_light = *d;
+  } else if (!lights.empty()) {
+    page.default_light = MeanDirection(lights);
+  }
+  if (model->encoding() != ValueEncoding::kSrgb) {
+    ToneMapOptions options = source->process ? ToneMapOptionsFor(*source->process) : ToneMapOptions{};
+    options.srgb = true;
+    page.display = WardDisplay(*model, page.default_light, gain, options);
+  }
+  // normals.png / albedo.png beside the model (rig normals writes them there).
+  const fs::path beside = fs::is_directory(path, ec) ? fs::path(path) : fs::path(path).parent_path();
+  for (const char* name : {"normals.png", "albedo.png"}) {
+    if (!fs::is_regular_file(beside / name, ec)) continue;
+    if (Status st = CopyFile(beside / name, fs::path(a.out) / name); !st.ok()) return ReportError("view", st.error());
+    page.images.push_back(name);
+  }
+  page.tiles = a.tiles == "on" || (a.tiles == "auto" && WantsDeepZoom(model->width(), model->height()));
+  std::string tiles_line;
+  if (page.tiles) {
+    page.tile_options.quality = a.quality;
+    auto report = WriteDeepZoom(a.out, page.tile_options);
+    if (!report.ok()) return ReportError("view", report.error());
+    tiles_line = fmt::format("\n  deep zoom: {} plane files x {} levels, {} tiles of {} px (overlap {}) in {:.2f} s",
+                             report->files, report->levels, report->tiles, page.tile_options.tile_size,
+                             page.tile_options.overlap, report->seconds);
+  }
+  if (Status st = WriteViewerPage(a.out, page); !st.ok()) return ReportError("view", st.error());
+  std::printf("rig view: wrote %s/index.html (%dx%d, %s)\n  %s%s\n  display: %s\n  open it %s\n", a.out.c_str(),
+              model->width(), model->height(), model->Describe().c_str(), how.c_str(), tiles_line.c_str(),
+              model->encoding() == ValueEncoding::kSrgb
+                  ? "the photographs' sRGB encoding, as rig render"
+                  : "Ward's curve of the default light as a table (rig render recomputes it per light)",
+              page.tiles ? fmt::format("served: python3 -m http.server -d {} --bind 127.0.0.1", a.out).c_str()
+                         : "from file:// or served");
+  return 0;
+}
+
+}  // namespace rig
