@@ -381,7 +381,7 @@ TEST_F(ViewTest, DeepZoomLoadsOnlyVisibleTilesAndMatches) {
   ASSERT_TRUE(fs::exists(view + "/plane_5_files/11/4_2.jpg"));
   ASSERT_TRUE(fs::exists(view + "/plane_5_files/0/0_0.jpg"));
   // The first view, the whole image in 400x320 (zoom 0.364): level 10 (550x350, 3x2 tiles of
-  // the 5x3 at full size), 6 tiles per file.
+  // the 5x3 at full size) and, for a whole picture sooner, level 9 (275x175, 2x1 tiles).
   const Vec3 d = LightDirection(30, 20);
   PageRun run = RunPage(view, fmt::format("ui=0&shots={},{},{}", d[0], d[1], d[2]));
   ASSERT_TRUE(run.finished);
@@ -390,10 +390,10 @@ TEST_F(ViewTest, DeepZoomLoadsOnlyVisibleTilesAndMatches) {
     EXPECT_EQ(p.find("/plane_0.jpg"), std::string::npos) << "the full plane was fetched";
     if (p.find("_files/") != std::string::npos) {
       ++tile_requests;
-      EXPECT_THAT(p, HasSubstr("_files/10/"));
+      EXPECT_THAT(p, ::testing::AnyOf(HasSubstr("_files/10/"), HasSubstr("_files/9/")));
     }
   }
-  EXPECT_EQ(tile_requests, 36);
+  EXPECT_EQ(tile_requests, 6 * (6 + 2));
   // Native size: every full-size tile, against rig render of the plane files.
   run = RunPage(view, Shots({{30, 20}}), false, W, H);
   ASSERT_TRUE(run.finished);
@@ -460,9 +460,12 @@ TEST_F(ViewTest, Bench24MpFirstView) {
   int tiles = 0;
   for (const auto& p : run.requests) tiles += p.find("_files/") != std::string::npos;
   const double first_ms = run.done.value("first_view_ms", -1.0);
+  const double full_ms = run.done.value("full_view_ms", -1.0);
   std::printf("  first view in headless Chromium (SwiftShader, 1280x800): %.0f ms after navigation "
-              "start (%d tile requests); browser launch to report: %.2f s\n",
-              first_ms, tiles, run.wall_s);
+              "start; every tile of its level: %.0f ms (%d tile requests); browser launch to "
+              "report: %.2f s\n",
+              first_ms, full_ms, tiles, run.wall_s);
+  RecordProperty("full_view_ms", fmt::format("{:.0f}", full_ms));
   RecordProperty("first_view_ms", fmt::format("{:.0f}", first_ms));
   EXPECT_LT(first_ms, 2000);
 }

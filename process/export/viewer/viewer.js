@@ -390,19 +390,23 @@ ${sum}    rad += decode(v) * uColor[l];
       gl.uniform4f(U('uRect'), a[0], a[1], b[0], b[1]);
       gl.uniform4f(U('uTex'), 0, 0, 1, 1);
       gl.drawArrays(gl.TRIANGLE_STRIP, 0, 4);
-      settle(true);
+      settle(true, true);
       return;
     }
     gl.uniform1i(U('uMode'), 0);
     const vis = visibleTiles();
-    let complete = true;
+    // The needed level and the one below it are requested (the coarser one first, so that a
+    // whole picture is up soon); levels further down are drawn when already loaded.
+    const need = vis.levels[vis.levels.length - 1].L;
+    const complete = {};
     for (const { L, list } of vis.levels) {
-      const finest = L === vis.levels[vis.levels.length - 1].L;
+      const wanted = L >= need - 1;
+      complete[L] = true;
       const f = dz ? 2 ** (maxLevel - L) : 1, T = dz ? dz.tileSize : Math.max(W, H), ov = dz ? dz.overlap : 0;
       const [lw, lh] = levelSize(L);
       for (const [tx, ty] of list) {
-        const t = finest ? requestTile(L, tx, ty) : tiles.get(tileKey(L, tx, ty));
-        if (!t || t.state !== 'ready') { if (finest && (!t || t.state === 'loading')) complete = false; continue; }
+        const t = wanted ? requestTile(L, tx, ty) : tiles.get(tileKey(L, tx, ty));
+        if (!t || t.state !== 'ready') { if (!t || t.state === 'loading') complete[L] = false; continue; }
         // content rect in level pixels, and where it sits in the tile image
         const cx0 = tx * T, cy0 = ty * T, cx1 = Math.min(cx0 + T, lw), cy1 = Math.min(cy0 + T, lh);
         const ox = tx > 0 ? ov : 0, oy = ty > 0 ? ov : 0;
@@ -418,17 +422,21 @@ ${sum}    rad += decode(v) * uColor[l];
         gl.drawArrays(gl.TRIANGLE_STRIP, 0, 4);
       }
     }
-    settle(complete);
+    settle(complete[need], complete[need] || complete[need - 1] === true);
   }
+  // Waiters for a drawn frame: 'full' (every tile of the needed level) or 'any' (a whole
+  // picture, the needed level or the one below it).
   let settleWaiters = [];
-  function settle(complete) {
-    if (!complete) return;
+  function settle(full, any) {
+    if (!any) return;
     gl.finish();
-    const w = settleWaiters;
-    settleWaiters = [];
-    w.forEach((f) => f());
+    const keep = [];
+    for (const w of settleWaiters) {
+      if (full || w.kind === 'any') w.resolve(); else keep.push(w);
+    }
+    settleWaiters = keep;
   }
-  function whenDrawn() { return new Promise((r) => { settleWaiters.push(r); redraw(); }); }
+  function whenDrawn(kind = 'full') { return new Promise((resolve) => { settleWaiters.push({ kind, resolve }); redraw(); }); }
 
   // ---- Lamps and controls ------------------------------------------------------------------------
   // ?light=x,y,z[,r,g,b[,i]] (repeat the parameter, or separate lamps with ';')
@@ -551,10 +559,10 @@ ${sum}    rad += decode(v) * uColor[l];
   }
   if (params.get('view')) { mode = params.get('view'); modeSelect.value = mode; }
   const status = document.getElementById('status');
-  window.rigFirstView = whenDrawn().then(() => {
-    const ms = performance.now();
-    status.textContent = `first view ${ms.toFixed(0)} ms`;
-    return ms;
+  window.rigFirstView = whenDrawn('any').then(() => performance.now());
+  window.rigFullView = whenDrawn('full').then(() => performance.now());
+  Promise.all([window.rigFirstView, window.rigFullView]).then(([a, b]) => {
+    status.textContent = `first view ${a.toFixed(0)} ms, every tile of its level ${b.toFixed(0)} ms`;
   });
 
   // Test hook: ?report=URL&shots=x,y,z|x,y,z...: each shot's pixels POSTed to URL (raw RGBA,
@@ -562,7 +570,7 @@ ${sum}    rad += decode(v) * uColor[l];
   const report = params.get('report');
   if (report) {
     (async () => {
-      const firstMs = await window.rigFirstView;
+      const firstMs = await window.rigFirstView, fullMs = await window.rigFullView;
       const shots = (params.get('shots') || '').split('|').filter((s) => s);
       const send = (path, body) => fetch(report + path, { method: 'POST', body, mode: 'no-cors' });
       for (let i = 0; i < Math.max(1, shots.length); ++i) {
@@ -574,7 +582,7 @@ ${sum}    rad += decode(v) * uColor[l];
         await send(`/shot?i=${i}&w=${w}&h=${h}`, flip);
       }
       const resources = performance.getEntriesByType('resource').map((e) => e.name);
-      await send('/done', JSON.stringify({ first_view_ms: firstMs, resources, location: location.href,
+      await send('/done', JSON.stringify({ first_view_ms: firstMs, full_view_ms: fullMs, resources, location: location.href,
                                            renderer: gl.getParameter(gl.RENDERER), message: message.textContent }));
     })();
   }
