@@ -26,7 +26,7 @@ namespace fs = std::filesystem;
 
 struct ViewArgs {
   std::string source, out, tiles = "auto", light, log_level;
-  int quality = 95;
+  int quality = 98;
 };
 
 Result<Vec3> ParseDirection(const std::string& text) {
@@ -106,7 +106,7 @@ int RunView(int argc, char** argv) {
       ->check(CLI::IsMember({"auto", "on", "off"}));
   app.add_option("--light", a.light, "the page's default lamp, a direction x,y,z (object frame); "
                                      "default: the mean of the model's lights");
-  app.add_option("--jpeg-quality", a.quality, "quality of converted planes and of tiles (default 95)")
+  app.add_option("--jpeg-quality", a.quality, "quality of converted planes and of tiles (default 98, as rig export)")
       ->check(CLI::Range(1, 100));
   AddLogLevelOption(app, &a.log_level);
   if (auto rc = ParseCommandLine(app, argc, argv)) return *rc;

@@ -158,7 +158,8 @@ double DbAfter(const std::string& output, const std::string& label) {
 
 // The real icon (72 photographs): PTM and HSH fitted in sRGB space (downsampled by 2), each
 // written to every format and read back. The bounds are what this capture measures, less ~1 dB:
-// 8-bit raw .ptm/.rti near 60 dB; JPEG q95 planes 44 dB (PTM, YCbCr) to 47.6 (HSH).
+// 8-bit raw .ptm/.rti near 60 dB; JPEG planes at the default q98 48.2 dB (PTM, YCbCr) to 51.6
+// (HSH); relight's q95 gave 44.1 and 47.6 (scripts/export-psnr.sh).
 TEST(ExportCommand, RealCaptureRoundTripsMeasureTheFormatsOwnLoss) {
   const std::string lp = testing::SharedDir() + "/data/rti/neuralrti-example/dirs.lp";
   if (!fs::exists(lp)) GTEST_SKIP() << lp << " is absent";
@@ -171,7 +172,7 @@ TEST(ExportCommand, RealCaptureRoundTripsMeasureTheFormatsOwnLoss) {
     struct Case { std::string args; double bound; };
     const bool ptm = std::string(basis) == "ptm";
     int n = 0;
-    for (const Case& c : {Case{"--format relight", ptm ? 43.0 : 46.5},
+    for (const Case& c : {Case{"--format relight", ptm ? 47.0 : 50.5},
                           Case{"--format relight --jpeg-rgb", ptm ? 45.0 : 48.0},
                           Case{ptm ? "--format ptm" : "--format rti", 58.0}}) {
       const std::string ext = c.args.find("ptm") != std::string::npos   ? ".ptm"

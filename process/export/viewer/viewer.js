@@ -305,7 +305,14 @@ ${sum}    rad += decode(v) * uColor[l];
   const maxLevel = dz ? Math.ceil(Math.log2(Math.max(W, H))) : 0;
   const levelSize = (L) => dz ? [Math.ceil(W / 2 ** (maxLevel - L)), Math.ceil(H / 2 ** (maxLevel - L))] : [W, H];
   const tiles = new Map();  // key -> {state, textures}
-  let pending = 0;
+  const pendingAt = {};     // level -> tiles still loading
+  let soon = null;
+  // A full redraw costs a frame of the CPU rasteriser under SwiftShader: redraw when a level's
+  // last pending tile arrives, otherwise at most every 300 ms while tiles stream in.
+  function tileArrived(L) {
+    if (--pendingAt[L] === 0) redraw();
+    else if (!soon) soon = setTimeout(() => { soon = null; redraw(); }, 300);
+  }
   function tileKey(L, x, y) { return L + '/' + x + '_' + y; }
   function requestTile(L, x, y) {
     const key = tileKey(L, x, y);
@@ -313,7 +320,7 @@ ${sum}    rad += decode(v) * uColor[l];
     if (t) return t;
     t = { state: 'loading', textures: null };
     tiles.set(key, t);
-    ++pending;
+    pendingAt[L] = (pendingAt[L] || 0) + 1;
     const names = [];
     for (let j = 0; j < nfiles; ++j)
       names.push(dz ? `plane_${j}_files/${L}/${x}_${y}.${dz.format}` : `plane_${j}.jpg`);
@@ -322,9 +329,8 @@ ${sum}    rad += decode(v) * uColor[l];
       t.w = bitmaps[0].width; t.h = bitmaps[0].height;
       bitmaps.forEach((b) => b.close());
       t.state = 'ready';
-      --pending;
-      redraw();
-    }).catch((e) => { t.state = 'failed'; --pending; message.textContent = String(e.message || e); redraw(); });
+      tileArrived(L);
+    }).catch((e) => { t.state = 'failed'; message.textContent = String(e.message || e); tileArrived(L); });
     return t;
   }
 
@@ -395,12 +401,12 @@ ${sum}    rad += decode(v) * uColor[l];
     }
     gl.uniform1i(U('uMode'), 0);
     const vis = visibleTiles();
-    // The needed level and the one below it are requested (the coarser one first, so that a
-    // whole picture is up soon); levels further down are drawn when already loaded.
+    // The level below the needed one is requested first, the needed one once it is complete
+    // (a whole picture soon, then the detail); levels further down are drawn if loaded.
     const need = vis.levels[vis.levels.length - 1].L;
     const complete = {};
     for (const { L, list } of vis.levels) {
-      const wanted = L >= need - 1;
+      const wanted = L === need - 1 || (L === need && (need === 0 || complete[need - 1] !== false));
       complete[L] = true;
       const f = dz ? 2 ** (maxLevel - L) : 1, T = dz ? dz.tileSize : Math.max(W, H), ov = dz ? dz.overlap : 0;
       const [lw, lh] = levelSize(L);
@@ -561,9 +567,11 @@ ${sum}    rad += decode(v) * uColor[l];
   const status = document.getElementById('status');
   window.rigFirstView = whenDrawn('any').then(() => performance.now());
   window.rigFullView = whenDrawn('full').then(() => performance.now());
-  Promise.all([window.rigFirstView, window.rigFullView]).then(([a, b]) => {
-    status.textContent = `first view ${a.toFixed(0)} ms, every tile of its level ${b.toFixed(0)} ms`;
-  });
+  if (params.get('timing') === '1') {
+    Promise.all([window.rigFirstView, window.rigFullView]).then(([a, b]) => {
+      status.textContent = `first view ${a.toFixed(0)} ms, every tile of its level ${b.toFixed(0)} ms`;
+    });
+  }
 
   // Test hook: ?report=URL&shots=x,y,z|x,y,z...: each shot's pixels POSTed to URL (raw RGBA,
   // rows top-down), then URL/done with the resources the page loaded.
