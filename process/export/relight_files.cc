@@ -290,7 +290,19 @@ std::string RelightWebType(const std::string& folder) {
   return "";
 }
 
+namespace {
+Result<RelightCoefficients> ReadRelightWebImpl(const std::string& folder, bool planes);
+}  // namespace
+
 Result<RelightCoefficients> ReadRelightWeb(const std::string& folder) {
+  return ReadRelightWebImpl(folder, true);
+}
+Result<RelightCoefficients> ReadRelightWebInfo(const std::string& folder) {
+  return ReadRelightWebImpl(folder, false);
+}
+
+namespace {
+Result<RelightCoefficients> ReadRelightWebImpl(const std::string& folder, bool read_planes) {
   const std::string path = (fs::path(folder) / "info.json").string();
   std::ifstream f(path);
   if (!f) return MakeError(ErrorCode::kNotFound, path, "no such file");
@@ -383,9 +395,11 @@ Result<RelightCoefficients> ReadRelightWeb(const std::string& folder) {
       c.lights.push_back({l[i].get<double>(), l[i + 1].get<double>(), l[i + 2].get<double>()});
     }
   }
-  for (int j = 0; j < c.terms; ++j)
-    c.planes.emplace_back(c.height, c.width, c.lrgb ? CV_32FC1 : CV_32FC3);
-  if (c.lrgb) c.albedo.create(c.height, c.width, CV_32FC3);
+  if (read_planes) {
+    for (int j = 0; j < c.terms; ++j)
+      c.planes.emplace_back(c.height, c.width, c.lrgb ? CV_32FC1 : CV_32FC3);
+    if (c.lrgb) c.albedo.create(c.height, c.width, CV_32FC3);
+  }
   for (int j = 0; 3 * j < nplanes; ++j) {
     const std::string plane = (fs::path(folder) / fmt::format("plane_{}.jpg", j)).string();
     RIG_ASSIGN_OR_RETURN(auto reader, JpegReader::Open(plane));
@@ -393,6 +407,7 @@ Result<RelightCoefficients> ReadRelightWeb(const std::string& folder) {
       return MakeError(ErrorCode::kInvalidInput, plane, "{}x{}x{}, info.json says {}x{}x3",
                        reader->width(), reader->height(), reader->channels(), c.width, c.height);
     }
+    if (!read_planes) continue;
     cv::Mat rgb;
     RIG_TRY(reader->Read(c.height, &rgb));
     for (int k = 0; k < 3 && 3 * j + k < nplanes; ++k) {
@@ -413,6 +428,8 @@ Result<RelightCoefficients> ReadRelightWeb(const std::string& folder) {
   }
   return c;
 }
+
+}  // namespace
 
 // ---- .ptm ---------------------------------------------------------------------------------
 

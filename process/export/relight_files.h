@@ -32,6 +32,9 @@ Status WriteRelightWeb(const std::string& folder, const RelightCoefficients& c,
                        const WebWriteOptions& options);
 // Types "ptm" (18 planes, rgb; 9 planes, lrgb) and "hsh" (27 or 12 planes, rgb).
 Result<RelightCoefficients> ReadRelightWeb(const std::string& folder);
+// The same checks of info.json and of every plane file's header (size, channels), without
+// decoding the planes: `planes` and `albedo` are left empty.
+Result<RelightCoefficients> ReadRelightWebInfo(const std::string& folder);
 // The "type" of a web-format folder's info.json ("" when it cannot be read).
 std::string RelightWebType(const std::string& folder);
 

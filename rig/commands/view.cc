@@ -117,6 +117,15 @@ int RunView(int argc, char** argv) {
     return ReportError("view", MakeError(ErrorCode::kInvalidInput, a.out,
                                          "exists; choose another --out (nothing is overwritten)"));
   }
+  // --out did not exist: whatever a failed run leaves in it is removed.
+  struct RemoveOnFailure {
+    std::string dir;
+    bool done = false;
+    ~RemoveOnFailure() {
+      std::error_code e;
+      if (!done) fs::remove_all(dir, e);
+    }
+  } guard{a.out};
   auto source = ResolveRenderSource(a.source);
   if (!source.ok()) return ReportError("view", source.error());
   const std::string& path = source->model_path;
@@ -128,10 +137,27 @@ int RunView(int argc, char** argv) {
   double gain = 1;
   std::vector<Vec3> lights;
   const std::string web_type = fs::is_directory(path, ec) ? RelightWebType(path) : "";
+  const bool wants_tiles_on = a.tiles == "on", wants_tiles_auto = a.tiles == "auto";
+  std::string describe;
+  int width = 0, height = 0;
   if (web_type == "ptm" || web_type == "hsh" || web_type == "bilinear") {
-    auto m = LoadAnyModel(path);  // checks the folder
-    if (!m.ok()) return ReportError("view", m.error());
-    model = std::move(*m);
+    if (web_type != "bilinear") {
+      // info.json and the plane headers first; a model that gets tiles is decoded by the tiler
+      // (which refuses a damaged plane, naming it), not held whole as float planes here.
+      auto info = ReadRelightWebInfo(path);
+      if (!info.ok()) return ReportError("view", info.error());
+      lights = info->lights;
+      width = info->width;
+      height = info->height;
+      describe = fmt::format("{} (relight's basis), from {} (relight web format)", info->Summary(), path);
+    }
+    const bool tiled = wants_tiles_on || (wants_tiles_auto && width > 0 && WantsDeepZoom(width, height));
+    if (!tiled) {
+      auto m = LoadAnyModel(path);  // checks the whole folder
+      if (!m.ok()) return ReportError("view", m.error());
+      model = std::move(*m);
+      if (const RelightCoefficients* rc = RelightCoefficientsOf(*model)) lights = rc->lights;
+    }
     fs::create_directories(a.out, ec);
     if (ec) return ReportError("view", MakeError(ErrorCode::kIo, a.out, "cannot create: {}", ec.message()));
     std::vector<std::string> names = {"info.json"};
@@ -140,7 +166,6 @@ int RunView(int argc, char** argv) {
     for (const auto& n : names)
       if (Status st = CopyFile(fs::path(path) / n, fs::path(a.out) / n); !st.ok()) return ReportError("view", st.error());
     how = fmt::format("{} web format copied as it is (nothing refitted)", web_type);
-    if (const RelightCoefficients* rc = RelightCoefficientsOf(*model)) lights = rc->lights;
   } else {
     RelightTarget target;
     Result<Conversion> conversion = MakeError(ErrorCode::kInternal, "view", "not converted");
@@ -183,8 +208,14 @@ int RunView(int argc, char** argv) {
                       std::isinf(psnr) ? std::string("identical") : fmt::format("{:.2f} dB", psnr), at.size());
   }
 
+  if (model) {
+    describe = model->Describe();
+    width = model->width();
+    height = model->height();
+  }
+  const bool srgb = !model || model->encoding() == ValueEncoding::kSrgb;
   ViewerPage page;
-  page.source = model->Describe();
+  page.source = describe;
   if (!a.light.empty()) {
     auto d = ParseDirection(a.light);
     if (!d.ok()) return ReportError("view", d.error());
@@ -192,7 +223,7 @@ int RunView(int argc, char** argv) {
   } else if (!lights.empty()) {
     page.default_light = MeanDirection(lights);
   }
-  if (model->encoding() != ValueEncoding::kSrgb) {
+  if (!srgb) {
     ToneMapOptions options = source->process ? ToneMapOptionsFor(*source->process) : ToneMapOptions{};
     options.srgb = true;
     page.display = WardDisplay(*model, page.default_light, gain, options);
@@ -204,7 +235,7 @@ int RunView(int argc, char** argv) {
     if (Status st = CopyFile(beside / name, fs::path(a.out) / name); !st.ok()) return ReportError("view", st.error());
     page.images.push_back(name);
   }
-  page.tiles = a.tiles == "on" || (a.tiles == "auto" && WantsDeepZoom(model->width(), model->height()));
+  page.tiles = wants_tiles_on || (wants_tiles_auto && WantsDeepZoom(width, height));
   std::string tiles_line;
   if (page.tiles) {
     page.tile_options.quality = a.quality;
@@ -215,9 +246,10 @@ int RunView(int argc, char** argv) {
                              page.tile_options.overlap, report->seconds);
   }
   if (Status st = WriteViewerPage(a.out, page); !st.ok()) return ReportError("view", st.error());
+  guard.done = true;
   std::printf("rig view: wrote %s/index.html (%dx%d, %s)\n  %s%s\n  display: %s\n  open it %s\n", a.out.c_str(),
-              model->width(), model->height(), model->Describe().c_str(), how.c_str(), tiles_line.c_str(),
-              model->encoding() == ValueEncoding::kSrgb
+              width, height, describe.c_str(), how.c_str(), tiles_line.c_str(),
+              srgb
                   ? "the photographs' sRGB encoding, as rig render"
                   : "Ward's curve of the default light as a table (rig render recomputes it per light)",
               page.tiles ? fmt::format("served: python3 -m http.server -d {} --bind 127.0.0.1", a.out).c_str()

@@ -42,12 +42,13 @@ std::string Edited(const std::string& good, const std::string& name,
   return dir;
 }
 
-void ExpectRefused(const std::string& path, const std::string& file, const std::string& field) {
+void ExpectRefused(const std::string& path, const std::string& file, const std::string& field,
+                   const std::string& view_args = "") {
   auto m = LoadAnyModel(path);
   ASSERT_FALSE(m.ok()) << path;
   EXPECT_THAT(m.error().ToString(), HasSubstr(file));
   EXPECT_THAT(m.error().ToString(), HasSubstr(field));
-  const auto r = testing::RunRig("view " + path + " --out " + path + "-view");
+  const auto r = testing::RunRig("view " + path + " --out " + path + "-view " + view_args);
   EXPECT_EQ(r.status, 2) << r.output;
   EXPECT_THAT(r.output, HasSubstr(file));
   EXPECT_THAT(r.output, HasSubstr(field));
@@ -72,6 +73,11 @@ TEST(ExportForeignInput, WebFoldersTruncatedUnknownOrInconsistentAreRefusedNamin
     fs::copy(good, dir, fs::copy_options::recursive);
     fs::resize_file(dir + "/plane_3.jpg", fs::file_size(dir + "/plane_3.jpg") / 2);
     ExpectRefused(dir, dir + "/plane_3.jpg", "");
+    // tiled: the planes are not loaded whole; the tiler refuses the damaged one
+    const auto r = testing::RunRig("view " + dir + " --tiles on --out " + dir + "-tiled");
+    EXPECT_EQ(r.status, 2) << r.output;
+    EXPECT_THAT(r.output, HasSubstr(dir + "/plane_3.jpg"));
+    EXPECT_FALSE(fs::exists(dir + "-tiled")) << "a failed rig view leaves nothing";
   }
   // unknown variants
   ExpectRefused(Edited(good, "ycc", [](auto& i) { i["colorspace"] = "ycc"; }), "info.json", "colorspace");

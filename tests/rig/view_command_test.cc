@@ -404,6 +404,26 @@ TEST_F(ViewTest, DeepZoomLoadsOnlyVisibleTilesAndMatches) {
   EXPECT_LE(diff.max, 8);
 }
 
+// normals.png / albedo.png beside the model are copied and shown as they are.
+TEST_F(ViewTest, NormalsBesideTheModelAreShown) {
+  const std::string web = dir_ + "/with-normals";
+  ASSERT_TRUE(WriteRelightWeb(web, SmoothHsh(), WebWriteOptions{}).ok());
+  cv::Mat normals(48, 64, CV_8UC3);
+  for (int y = 0; y < 48; ++y)
+    for (int x = 0; x < 64; ++x) normals.at<cv::Vec3b>(y, x) = cv::Vec3b(255, uint8_t(4 * x), uint8_t(5 * y));  // B, G, R
+  ASSERT_TRUE(cv::imwrite(web + "/normals.png", normals));
+  const std::string view = dir_ + "/normals-view";
+  ASSERT_EQ(RunRig("view " + web + " --out " + view).status, 0);
+  ASSERT_TRUE(fs::exists(view + "/normals.png"));
+  const PageRun run = RunPage(view, "fit=native&ui=0&view=normals&shots=0,0,1");
+  ASSERT_TRUE(run.finished);
+  ASSERT_TRUE(run.shots.count(0));
+  cv::Mat rgb;
+  cv::cvtColor(normals, rgb, cv::COLOR_BGR2RGB);
+  const Diff d = Compare(run.shots.at(0), rgb);
+  EXPECT_EQ(d.max, 0) << "mean " << d.mean;
+}
+
 TEST_F(ViewTest, RefusesAnExistingFolderAndABadLight) {
   const std::string model = WriteShModel(dir_, FitSpace::kSrgb);
   fs::create_directories(dir_ + "/there");

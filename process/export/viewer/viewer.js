@@ -526,7 +526,8 @@ ${sum}    rad += decode(v) * uColor[l];
   canvas.addEventListener('pointerup', () => { drag = null; renderLampList(); });
   function moveLamp(e) {
     const r = canvas.getBoundingClientRect();
-    let x = ((e.clientX - r.left) / r.width) * 2 - 1, y = 1 - ((e.clientY - r.top) / r.height) * 2;
+    const radius = Math.min(r.width, r.height) / 2;  // the inscribed disc is the hemisphere
+    let x = (e.clientX - r.left - r.width / 2) / radius, y = (r.top + r.height / 2 - e.clientY) / radius;
     const n = Math.hypot(x, y);
     if (n > 0.999) { x *= 0.999 / n; y *= 0.999 / n; }
     lamps[selected].dir = [x, y, Math.sqrt(Math.max(0, 1 - x * x - y * y))];
@@ -561,6 +562,7 @@ ${sum}    rad += decode(v) * uColor[l];
       images[name] = textureFrom(b, true);
       b.close();
       modeSelect.querySelector(`option[value=${name}]`).disabled = false;
+      redraw();
     }).catch((e) => { message.textContent = String(e.message || e); });
   }
   if (params.get('view')) { mode = params.get('view'); modeSelect.value = mode; }
