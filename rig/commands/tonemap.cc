@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -26,7 +27,21 @@ Result<cv::Mat> ReadRadiance(const std::string& path) {
   if (!std::filesystem::exists(path)) {
     return MakeError(ErrorCode::kNotFound, path, "no such file");
   }
-  if (ext == ".exr") return ReadRgbExr(path);
+  if (ext == ".exr") {
+    RIG_ASSIGN_OR_RETURN(cv::Mat exr, ReadRgbExr(path));
+    // NaN or infinite pixels would come out black without a word: refused, the first named.
+    cv::Point at;
+    if (!cv::checkRange(exr.reshape(1), true, &at)) {
+      cv::Mat bad;
+      cv::compare(exr.reshape(1), exr.reshape(1), bad, cv::CMP_NE);  // NaN
+      cv::Mat inf = cv::abs(exr.reshape(1)) == std::numeric_limits<float>::infinity();
+      return MakeError(ErrorCode::kInvalidInput, path,
+                       "{} sample(s) are NaN and {} infinite (the first at pixel x={} y={}); a "
+                       "radiance map holds finite values only",
+                       cv::countNonZero(bad), cv::countNonZero(inf), at.x / 3, at.y);
+    }
+    return exr;
+  }
   if (ext != ".hdr" && ext != ".pic") {
     return MakeError(ErrorCode::kInvalidInput, path,
                      "unknown HDR format '{}' (.exr, .hdr or .pic expected)", ext);

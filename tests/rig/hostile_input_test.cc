@@ -13,7 +13,12 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <limits>
+
+#include <opencv2/imgcodecs.hpp>
+
 #include "capture/plan/pose.h"
+#include "process/io/exr_io.h"
 #include "capture/session/session_store.h"
 #include "tests/support/run_rig.h"
 
@@ -345,6 +350,64 @@ TEST(HostileSession, ARemovedHdrFolderIsMadeAgainByProcess) {
   int maps = 0;
   for (const auto& e : fs::directory_iterator(s / "hdr")) maps += e.path().extension() == ".exr";
   EXPECT_EQ(maps, 8);
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace rig
+
+namespace rig {
+namespace {
+
+// Issue 20 item 11 and item 8: the smaller ones.
+TEST(HostileFiles, SmallerOnesExit2WithAReason) {
+  const std::string dir = testing::FreshTempDir("hostile_small");
+  // A float TIFF frame: bad input (2), not a failure of the work (1).
+  cv::Mat f(20, 30, CV_32FC3, cv::Scalar(0.5, 0.5, 0.5));
+  ASSERT_TRUE(cv::imwrite(dir + "/f.tif", f));
+  cv::Mat g(20, 30, CV_8UC3, cv::Scalar(100, 100, 100));
+  ASSERT_TRUE(cv::imwrite(dir + "/g.png", g));
+  WriteText(dir + "/b.txt", "f.tif 0.01\ng.png 0.02\n");
+  CommandResult r = RunRig("hdr --list " + dir + "/b.txt --out " + dir + "/o.exr");
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("f.tif"));
+  // NaN and infinite pixels are refused by tonemap, not turned black silently.
+  ExrImage img;
+  img.width = 4, img.height = 2;
+  for (const char* c : {"R", "G", "B"}) {
+    img.channel_names.push_back(c);
+    img.channels.push_back(cv::Mat(2, 4, CV_32F, cv::Scalar(1.0)));
+  }
+  img.channels[1].at<float>(1, 2) = std::numeric_limits<float>::quiet_NaN();
+  img.channels[0].at<float>(0, 1) = std::numeric_limits<float>::infinity();
+  ASSERT_TRUE(WriteExr(dir + "/nan.exr", img).ok());
+  r = RunRig("tonemap " + dir + "/nan.exr --out " + dir + "/nan.png");
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("1 sample(s) are NaN and 1 infinite"));
+  EXPECT_FALSE(fs::exists(dir + "/nan.png"));
+  // An EXR whose data window claims huge dimensions: refused as damaged input (2).
+  {
+    std::ifstream in(dir + "/nan.exr", std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string key = std::string("dataWindow") + '\0' + "box2i" + '\0';
+    const auto at = bytes.find(key);
+    ASSERT_NE(at, std::string::npos);
+    const size_t box = at + key.size() + 4;  // after the attribute's size
+    const int32_t huge[4] = {-2000000000, -2000000000, 2000000000, 2000000000};
+    bytes.replace(box, 16, reinterpret_cast<const char*>(huge), 16);
+    std::ofstream(dir + "/huge.exr", std::ios::binary) << bytes;
+  }
+  r = RunRig("tonemap " + dir + "/huge.exr --out " + dir + "/huge.png");
+  EXPECT_EQ(r.status, 2) << r.output;
+  fs::remove_all(dir);
+}
+
+TEST(HostileFiles, RenderIntoAMissingFolderSaysSo) {
+  const std::string dir = testing::FreshTempDir("hostile_render_out");
+  auto r = RunRig("render " + dir + "/none.exr --light 0,45 --out " + dir + "/missing_dir/x.png");
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("missing_dir"));
+  EXPECT_THAT(r.output, HasSubstr("does not exist"));
   fs::remove_all(dir);
 }
 
