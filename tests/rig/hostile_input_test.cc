@@ -5,6 +5,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -408,6 +409,33 @@ TEST(HostileFiles, RenderIntoAMissingFolderSaysSo) {
   EXPECT_EQ(r.status, 2) << r.output;
   EXPECT_THAT(r.output, HasSubstr("missing_dir"));
   EXPECT_THAT(r.output, HasSubstr("does not exist"));
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace rig
+
+namespace rig {
+namespace {
+
+// Item 8 (already fixed on main, kept by this test): an image smaller than --downsample is
+// refused with exit 2, and no OpenCV warning reaches the terminal.
+TEST(HostileFiles, FitLpRefusesImagesSmallerThanTheDownsampleFactor) {
+  const std::string dir = testing::FreshTempDir("hostile_lp_small");
+  std::ofstream lp(dir + "/s.lp");
+  lp << "12\n";
+  for (int i = 0; i < 12; ++i) {
+    const double az = i * 2 * M_PI / 12, e = 0.6;
+    cv::Mat img(3, 4, CV_8UC3, cv::Scalar(40 + 10 * i, 80, 120));
+    cv::imwrite(dir + "/i" + std::to_string(i) + ".jpg", img);
+    lp << "i" << i << ".jpg " << std::cos(e) * std::cos(az) << " " << std::cos(e) * std::sin(az)
+       << " " << std::sin(e) << "\n";
+  }
+  lp.close();
+  auto r = RunRig("fit --lp " + dir + "/s.lp --downsample 8 --out " + dir + "/m");
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("downsample"));
+  EXPECT_THAT(r.output, Not(HasSubstr("[ WARN")));
   fs::remove_all(dir);
 }
 
