@@ -85,7 +85,7 @@ Status WriteExrStriped(const std::string& path, int width, int height,
     const fs::path dir = fs::path(path).parent_path();
     std::error_code ec;
     if (!dir.empty()) fs::create_directories(dir, ec);
-    if (ec) return MakeError(ErrorCode::kIo, dir.string(), "cannot create folder: {}", ec.message());
+    if (ec) return MakeError(ErrorCode::kIo, path, "cannot create folder {}: {}", dir.string(), ec.message());
   }
   try {
     threads = std::max(threads, 1);

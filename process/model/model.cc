@@ -240,7 +240,15 @@ Result<Model> ModelFromHeader(const std::map<std::string, std::string>& a, int w
   i.solved_condition = info("solved_condition_number");
   i.sample_spacing_deg = info("sample_spacing_deg");
   const double pixels = static_cast<double>(std::max(width, 0)) * std::max(height, 0);
-  RIG_ASSIGN_OR_RETURN(double flagged, opt("flagged_pixels", 0, 0, pixels, true));
+  // A streamed fit writes a note here instead of a count: only a number is checked.
+  double flagged = 0;
+  if (auto it = a.find("flagged_pixels"); it != a.end()) {
+    char* end = nullptr;
+    std::strtod(it->second.c_str(), &end);
+    if (end != it->second.c_str()) {
+      RIG_ASSIGN_OR_RETURN(flagged, opt("flagged_pixels", 0, 0, pixels, true));
+    }
+  }
   i.flagged_pixels = static_cast<size_t>(flagged);
   if (auto it = a.find("lamp_directions"); it != a.end()) {
     std::istringstream ds(it->second);

@@ -31,7 +31,7 @@ TEST(ModelHeader, NonFiniteAndOutOfRangeNumbersAreRefusedNamingTheKey) {
       {"light_frame.h_sign", "0"},         {"light_frame.h_sign", "1e300"},
       {"light_frame.v_sign", "-2"},        {"order", "1e300"},
       {"order", "1.5"},                    {"order", "nan"},
-      {"flagged_pixels", "1e300"},         {"flagged_pixels", "-1"},
+      {"flagged_pixels", "1e300"},         {"flagged_pixels", "-1"}, {"flagged_pixels", "12x"},
       {"lamp_radiance_rgb", "1 inf 1"},    {"lamp_radiance_rgb", "1 0 1"},
       {"fit_space_log_epsilon", "inf"},    {"light_frame.v_offset_deg", "12abc"},
       {"lamp_directions", "0 0 1;nan 0 1"},
