@@ -130,7 +130,7 @@ class Reader {
     for (const auto& e : *a) {
       auto d = e.value<double>();
       if (!d) return TypeError(&e, key, "an array of numbers");
-      if (*d < r.min || *d > r.max)
+      if (!std::isfinite(*d) || *d < r.min || *d > r.max)
         return Report(e.source(), PathOf(key),
                       fmt::format("element {} is out of range [{}, {}]", *d, r.min, r.max));
       out.push_back(*d);
@@ -174,7 +174,7 @@ class Reader {
         d = e.value<double>();
       }
       if (!d) return TypeError(n, key, fmt::format("an array of {} {}", N, what));
-      if (*d < r.min || *d > r.max)
+      if (!std::isfinite(*d) || *d < r.min || *d > r.max)
         return Report(e.source(), PathOf(key),
                       fmt::format("element {} is out of range [{}, {}]", *d, r.min, r.max));
       out[i] = static_cast<T>(*d);
@@ -514,6 +514,15 @@ void CheckConsistency(const Config& c, Reader& r) {
   else if (!Divides(g.v_max_deg - g.v_min_deg, g.v_step_deg))
     r.ReportAt("grid.v_step_deg", fmt::format("step {} does not divide the span {} .. {}",
                                               g.v_step_deg, g.v_min_deg, g.v_max_deg));
+  // The grid's size, bounded before anything allocates it (PlanGrid, the journal's plan).
+  if (g.h_max_deg >= g.h_min_deg && g.v_max_deg >= g.v_min_deg) {
+    const double nh = std::floor((g.h_max_deg - g.h_min_deg) / g.h_step_deg + 0.5) + 1;
+    const double nv = std::floor((g.v_max_deg - g.v_min_deg) / g.v_step_deg + 0.5) + 1;
+    if (nh * nv > kMaxGridPoses)
+      r.ReportAt("grid.h_step_deg",
+                 fmt::format("the grid has {:.0f} x {:.0f} = {:.4g} poses; at most {} are allowed",
+                             nh, nv, nh * nv, kMaxGridPoses));
+  }
   const auto& m = c.motor;
   if (g.h_min_deg < m.h_limit_min_deg || g.h_max_deg > m.h_limit_max_deg)
     r.ReportAt("grid.h_max_deg", fmt::format("grid {} .. {} leaves the motor's soft limits {} .. {}",
@@ -592,6 +601,9 @@ ConfigResult ParseConfig(const std::string& text, const std::string& source_name
                                   static_cast<int>(src.begin.column), "(syntax)",
                                   std::string(e.description())});
     return result;
+  } catch (const std::exception& e) {  // e.g. std::bad_alloc on a hostile document
+    result.diagnostics.push_back({source_name, 0, 0, "(syntax)", e.what()});
+    return result;
   }
   Reader reader(root, source_name, &result.diagnostics);
   VisitConfig(result.config, reader);
@@ -613,6 +625,13 @@ ConfigResult LoadConfig(const std::string& path) {
   }
   std::stringstream ss;
   ss << in.rdbuf();
+  if (ss.str().size() > kMaxConfigBytes) {
+    ConfigResult r;
+    r.diagnostics.push_back({path, 0, 0, "(file)",
+                             fmt::format("{} bytes: a configuration is at most {} bytes",
+                                         ss.str().size(), kMaxConfigBytes)});
+    return r;
+  }
   return ParseConfig(ss.str(), path);
 }
 

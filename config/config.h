@@ -176,6 +176,10 @@ struct Config {
   SimConfig sim;
 };
 
+// Limits checked before anything is allocated from a configuration (docs/robustness.md).
+inline constexpr double kMaxGridPoses = 100000;      // poses of one grid
+inline constexpr size_t kMaxConfigBytes = 1 << 20;  // a configuration file
+
 // One problem found in a configuration, with where it is.
 struct ConfigDiagnostic {
   std::string file;

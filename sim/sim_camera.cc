@@ -339,7 +339,15 @@ Result<CapturedFrame> SimCamera::Capture(Seconds exposure) {
     }
     radiance = cached_radiance_;
   }
-  cv::Mat image = Expose(radiance, t, Mix(static_cast<uint64_t>(sim_.seed)) ^ static_cast<uint64_t>(n));
+  // The noise of a frame depends on (seed, pose, exposure) only, never on how many captures
+  // this process made: a killed and resumed dry run stores the same bytes as an uninterrupted
+  // one.
+  const auto micro = [](double deg) { return static_cast<uint64_t>(std::llround(deg * 1e6)); };
+  const uint64_t speed_index = static_cast<uint64_t>(offered - speeds_.begin());
+  const uint64_t noise_seed =
+      Mix(Mix(Mix(static_cast<uint64_t>(sim_.seed)) ^ micro(state.h_deg)) ^ micro(state.v_deg)) ^
+      speed_index;
+  cv::Mat image = Expose(radiance, t, noise_seed);
   RIG_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, Encode(image));
 
   if (sim_.latency_scale > 0) {

@@ -76,6 +76,7 @@ std::string CaptureSummary::ToString() const {
       processing.merged, processing.failed.size(), processing.decode_s, processing.recover_s,
       processing.merge_s, processing.write_s, processing_tail_s);
   for (const auto& [pose, err] : processing.failed) s += fmt::format("\n  failed pose {}: {}", pose, err);
+  if (!storage_error.empty()) s += fmt::format("\nstorage failed: {}", storage_error);
   return s;
 }
 
@@ -117,6 +118,17 @@ CaptureDaemon::CaptureDaemon(Session& session, Camera& camera, Motor& motor, Lam
 // every pose, finish.
 Status CaptureDaemon::Run(CaptureSummary* summary) {
   RunState run{*summary};
+  // A run that stops early (a fault, a full disk) still reports what processing did and what
+  // failed: never "0 failed" below failed writes.
+  struct CollectOnEarlyReturn {
+    RunState& run;
+    ~CollectOnEarlyReturn() {
+      if (!run.processor || run.sum.processing_collected) return;
+      run.progress.reset();
+      run.sum.processing = run.processor->Finish();
+      run.sum.processing_collected = true;
+    }
+  } collect{run};
   run.poses = PlanGrid(session_.config().grid);
   RIG_TRY(VerifyStored(run));
   RIG_TRY(session_.journal().Append(
@@ -164,15 +176,19 @@ Status CaptureDaemon::VerifyIndex(RunState& run, const std::string& pose, int in
   std::vector<StoredFrame>& files = run.stored.at(pose).at(index);
   bool all_ok = true;
   for (auto& f : files) {
-    fs::path p = layout.root / f.record.at("file").get<std::string>();
-    auto bytes = ReadFileBytes(p);
+    // The journal's reader confined "file" to frames/ (relative, no ".."); it is read
+    // without following a link.
+    const std::string rel = f.record.at("file").get<std::string>();
+    fs::path p = layout.root / rel;
+    auto bytes = ReadSessionFile(layout.root, rel);
     f.verified = bytes.ok() && bytes->size() == f.record.at("bytes").get<size_t>() &&
                  Crc32(*bytes) == f.record.at("crc32").get<uint32_t>();
     if (!f.verified) {
       all_ok = false;
       Log("session")->warn("pose={} frame {} ({}) is missing or damaged; it will be captured again",
                            pose, index, p.string());
-      if (fs::exists(p)) RIG_TRY(MoveAside(p, "damaged"));
+      std::error_code ec;
+      if (fs::exists(fs::symlink_status(p, ec))) RIG_TRY(MoveAside(p, "damaged"));
       RIG_TRY(session_.journal().Append({{"event", "frame_damaged"}, {"pose", pose},
                                          {"index", index}, {"file", f.record.at("file")}}));
     } else {
@@ -183,7 +199,8 @@ Status CaptureDaemon::VerifyIndex(RunState& run, const std::string& pose, int in
   // The bracket index is redone whole (JPEG and RAW together): move the good half aside too.
   for (auto& f : files) {
     fs::path p = layout.root / f.record.at("file").get<std::string>();
-    if (f.verified && fs::exists(p)) RIG_TRY(MoveAside(p, "superseded"));
+    std::error_code ec;
+    if (f.verified && fs::exists(fs::symlink_status(p, ec))) RIG_TRY(MoveAside(p, "superseded"));
     known_files.erase(p);
     f.verified = false;
   }
@@ -196,7 +213,7 @@ Status CaptureDaemon::MoveAsideUnjournaled(RunState& run, const std::set<fs::pat
   const SessionLayout& layout = session_.layout();
   if (!fs::exists(layout.frames())) return Ok();
   for (const auto& e : fs::recursive_directory_iterator(layout.frames())) {
-    if (!e.is_regular_file()) continue;
+    if (!e.is_regular_file() && !e.is_symlink()) continue;
     if (e.path().filename().string()[0] == '.') continue;
     if (e.path().parent_path().filename().string()[0] == '.') continue;
     if (known_files.count(e.path())) continue;
@@ -239,6 +256,10 @@ Status CaptureDaemon::Plan(RunState& run) {
   for (Seconds s : *snapped) run.exposures.push_back(s.count());
   std::vector<std::string> pose_names;
   for (const auto& p : run.poses) pose_names.push_back(p.Name());
+  // Two poses under one name would share frames and a radiance map.
+  if (std::set<std::string>(pose_names.begin(), pose_names.end()).size() != pose_names.size())
+    return MakeError(ErrorCode::kInvalidInput, "grid",
+                     "two poses of the grid have the same name; use a coarser step");
   if (run.plan_record) {
     RIG_TRY(CheckPlan(run, pose_names));
   } else {
@@ -434,6 +455,7 @@ Status CaptureDaemon::StoreFiles(RunState& run, const Pose& pose, int index, dou
     auto rec = session_.StoreFrame(name, index, exposure_s, file.extension, file.bytes, extra);
     if (!rec.ok()) {
       Park(run);
+      run.sum.storage_error = rec.error().Within("pose " + name).ToString();
       return rec.error().Within("pose " + name);
     }
     if (IsImage(file.extension))
@@ -486,6 +508,7 @@ Status CaptureDaemon::Finish(RunState& run) {
   if (!run.was_done) RIG_TRY(session_.journal().Append({{"event", "capture_done"}}));
   auto t_tail = Clock::now();
   if (run.processor) run.sum.processing = run.processor->Finish();
+  run.sum.processing_collected = true;
   run.sum.processing_tail_s = Since(t_tail);
   run.sum.total_s = Since(run.t_start);
   return Ok();

@@ -36,6 +36,8 @@ struct CaptureSummary {
   double total_s = 0, motion_s = 0, settle_s = 0, lamp_s = 0, camera_s = 0, exposure_s = 0,
          storage_s = 0, queue_wait_s = 0, processing_tail_s = 0;
   ProcessingSummary processing;
+  bool processing_collected = false;     // `processing` holds the processor's final count
+  std::string storage_error;             // a frame that could not be stored (a full disk)
   // Printable multi-line summary.
   std::string ToString() const;
 };

@@ -35,7 +35,8 @@ Result<std::vector<BracketJob>> CompleteBrackets(const Session& session) {
     if (ev == "plan") {
       plan_exposures = r.at("exposures_s").get<std::vector<double>>();
     } else if (ev == "frame") {
-      std::string ext = r.value("ext", fs::path(r.value("file", "")).extension().string().substr(1));
+      const std::string file_ext = fs::path(r.value("file", "")).extension().string();
+      std::string ext = r.value("ext", file_ext.empty() ? std::string() : file_ext.substr(1));
       if (!IsImageExtension(ext)) continue;  // RAW files travel beside their JPEG
       std::string pose = r.at("pose").get<std::string>();
       if (frames.find(pose) == frames.end()) order.push_back(pose);

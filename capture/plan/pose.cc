@@ -14,7 +14,15 @@ std::string AngleText(double deg, int width) {
   double a = std::fabs(deg);
   double r = std::round(a);
   if (std::fabs(a - r) < 1e-6) return sign + fmt::format("{:0{}d}", static_cast<int>(r), width);
-  return sign + fmt::format("{:0{}.1f}", a, width + 2);
+  // As few decimals as name the angle to a millionth of a degree: "32.5", "0.05", "0.125"
+  // (one fixed decimal made 0.01-degree steps collide).
+  int decimals = 1;
+  while (decimals < 6) {
+    const double scale = std::pow(10.0, decimals);
+    if (std::fabs(std::round(a * scale) / scale - a) < 1e-7) break;
+    ++decimals;
+  }
+  return sign + fmt::format("{:0{}.{}f}", a, width + 1 + decimals, decimals);
 }
 
 bool ParseAngle(const std::string& s, double* out) {
@@ -44,6 +52,10 @@ Result<Pose> ParsePoseName(const std::string& name) {
 }
 
 std::vector<Pose> PlanGrid(const GridConfig& g) {
+  // The configuration bounds the grid (kMaxGridPoses) before anything allocates it.
+  RIG_CHECK((g.h_max_deg - g.h_min_deg) / g.h_step_deg < kMaxGridPoses &&
+                (g.v_max_deg - g.v_min_deg) / g.v_step_deg < kMaxGridPoses,
+            "grid not bounded by the configuration");
   int nh = static_cast<int>(std::lround((g.h_max_deg - g.h_min_deg) / g.h_step_deg)) + 1;
   int nv = static_cast<int>(std::lround((g.v_max_deg - g.v_min_deg) / g.v_step_deg)) + 1;
   std::vector<Pose> poses;

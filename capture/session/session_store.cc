@@ -11,10 +11,12 @@
 #include <chrono>
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <random>
 #include <sstream>
 
 #include "config/log.h"
+#include "config/settings.h"
 
 namespace rig {
 namespace {
@@ -47,6 +49,146 @@ std::string UtcNow() {
   return fmt::format("{}.{:03d}Z", buf, static_cast<int>(ms.count()));
 }
 
+// Closes a descriptor when it goes out of scope.
+struct Fd {
+  int fd = -1;
+  Fd() = default;
+  explicit Fd(int f) : fd(f) {}
+  Fd(const Fd&) = delete;
+  Fd& operator=(const Fd&) = delete;
+  Fd(Fd&& o) noexcept : fd(o.fd) { o.fd = -1; }
+  Fd& operator=(Fd&& o) noexcept {
+    std::swap(fd, o.fd);
+    return *this;
+  }
+  ~Fd() {
+    if (fd >= 0) ::close(fd);
+  }
+};
+
+Error LinkRefused(const fs::path& where) {
+  return MakeError(ErrorCode::kInvalidInput, where.string(),
+                   "is a symbolic link or not of its kind; a session's parts must be inside "
+                   "it, so nothing is read or written through it");
+}
+
+// The components of a relative path ("frames/h000_v00/0_0.01000.jpg").
+std::vector<std::string> Components(const std::string& rel) {
+  std::vector<std::string> out;
+  size_t start = 0;
+  while (start <= rel.size()) {
+    size_t slash = rel.find('/', start);
+    if (slash == std::string::npos) slash = rel.size();
+    out.push_back(rel.substr(start, slash - start));
+    start = slash + 1;
+  }
+  return out;
+}
+
+// Opens the folder `parts` (all but none of them links) below `root`; creates missing ones
+// when `create`.
+Result<Fd> OpenFolderInside(const fs::path& root, const std::vector<std::string>& parts,
+                            bool create) {
+  Fd dir(::open(root.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
+  if (dir.fd < 0) return Errno(root, "cannot open session folder");
+  fs::path where = root;
+  for (const auto& part : parts) {
+    where /= part;
+    int fd = ::openat(dir.fd, part.c_str(), O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+    if (fd < 0 && errno == ENOENT && create) {
+      if (::mkdirat(dir.fd, part.c_str(), 0755) != 0 && errno != EEXIST)
+        return Errno(where, "cannot create folder");
+      fd = ::openat(dir.fd, part.c_str(), O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+    }
+    if (fd < 0) {
+      if (errno == ELOOP || errno == ENOTDIR) return LinkRefused(where);
+      return Errno(where, "cannot open folder");
+    }
+    dir = Fd(fd);
+  }
+  return dir;
+}
+
+Result<std::pair<Fd, std::string>> SplitInside(const fs::path& root, const std::string& rel,
+                                               bool create) {
+  const std::string problem = SessionRelativePathProblem(rel);
+  if (!problem.empty())
+    return MakeError(ErrorCode::kInvalidInput, (root / rel).string(), "path {}", problem);
+  std::vector<std::string> parts = Components(rel);
+  std::string name = parts.back();
+  parts.pop_back();
+  RIG_ASSIGN_OR_RETURN(Fd dir, OpenFolderInside(root, parts, create));
+  return std::make_pair(std::move(dir), std::move(name));
+}
+
+// The atomic write of `bytes` as `name` in the open folder `dir_fd` (shown as `dir`).
+Status WriteAtomicAt(int dir_fd, const fs::path& dir, const std::string& name,
+                     std::span<const uint8_t> bytes, bool overwrite) {
+  const fs::path path = dir / name;
+  struct stat st {};
+  if (::fstatat(dir_fd, name.c_str(), &st, AT_SYMLINK_NOFOLLOW) == 0) {
+    if (!overwrite)
+      return MakeError(ErrorCode::kIo, path.string(), "refusing to overwrite an existing file");
+    if (!S_ISREG(st.st_mode)) return LinkRefused(path);
+  }
+  // A fresh name each time: the process id in it (a forked child inherits this generator's
+  // state and would otherwise repeat its parent's names), and another name when one is taken
+  // (a temporary left by a writer that was killed).
+  static thread_local std::mt19937_64 rng{std::random_device{}()};
+  std::string tmp;
+  int fd = -1;
+  for (int attempt = 0; attempt < 16 && fd < 0; ++attempt) {
+    tmp = fmt::format(".{}.tmp{}.{:016x}", name, ::getpid(), rng());
+    fd = ::openat(dir_fd, tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644);
+    if (fd < 0 && errno != EEXIST) break;
+  }
+  if (fd < 0) return Errno(dir / tmp, "cannot create temporary file");
+  Status status = WriteAll(fd, bytes.data(), bytes.size(), dir / tmp);
+  if (status.ok() && ::fsync(fd) != 0) status = Errno(dir / tmp, "fsync failed");
+  if (::close(fd) != 0 && status.ok()) status = Errno(dir / tmp, "close failed");
+  if (!status.ok()) {
+    ::unlinkat(dir_fd, tmp.c_str(), 0);
+    return status;
+  }
+  if (overwrite) {
+    if (::renameat(dir_fd, tmp.c_str(), dir_fd, name.c_str()) != 0) {
+      Error e = Errno(path, "rename failed");
+      ::unlinkat(dir_fd, tmp.c_str(), 0);
+      return e;
+    }
+  } else {
+    // linkat() fails if the target exists: no window in which an existing file is replaced.
+    if (::linkat(dir_fd, tmp.c_str(), dir_fd, name.c_str(), 0) != 0) {
+      Error e = errno == EEXIST
+                    ? MakeError(ErrorCode::kIo, path.string(), "refusing to overwrite an existing file")
+                    : Errno(path, "link failed");
+      ::unlinkat(dir_fd, tmp.c_str(), 0);
+      return e;
+    }
+    ::unlinkat(dir_fd, tmp.c_str(), 0);
+  }
+  if (::fsync(dir_fd) != 0) return Errno(dir, "fsync of folder failed");
+  return Ok();
+}
+
+// Reads a whole open file, at most `limit` bytes.
+Result<std::string> ReadAllFd(int fd, const fs::path& where, size_t limit) {
+  std::string text;
+  char buf[1 << 16];
+  for (;;) {
+    ssize_t n = ::read(fd, buf, sizeof buf);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      return Errno(where, "read failed");
+    }
+    if (n == 0) break;
+    if (text.size() + static_cast<size_t>(n) > limit)
+      return MakeError(ErrorCode::kCorrupt, where.string(), "larger than {} bytes", limit);
+    text.append(buf, static_cast<size_t>(n));
+  }
+  return text;
+}
+
 }  // namespace
 
 uint32_t Crc32(std::span<const uint8_t> bytes) {
@@ -75,45 +217,56 @@ Status WriteFileAtomic(const fs::path& path, std::span<const uint8_t> bytes, boo
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec) return MakeError(ErrorCode::kIo, dir.string(), "cannot create folder: {}", ec.message());
-  if (!overwrite && fs::exists(path))
-    return MakeError(ErrorCode::kIo, path.string(), "refusing to overwrite an existing file");
-  // A fresh name each time: the process id in it (a forked child inherits this generator's
-  // state and would otherwise repeat its parent's names), and another name when one is taken
-  // (a temporary left by a writer that was killed).
-  static thread_local std::mt19937_64 rng{std::random_device{}()};
-  fs::path tmp;
-  int fd = -1;
-  for (int attempt = 0; attempt < 16 && fd < 0; ++attempt) {
-    tmp = dir / fmt::format(".{}.tmp{}.{:016x}", path.filename().string(), ::getpid(), rng());
-    fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
-    if (fd < 0 && errno != EEXIST) break;
+  Fd dir_fd(::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
+  if (dir_fd.fd < 0) return Errno(dir, "cannot open folder");
+  return WriteAtomicAt(dir_fd.fd, dir, path.filename().string(), bytes, overwrite);
+}
+
+Status WriteSessionFile(const fs::path& root, const std::string& rel,
+                        std::span<const uint8_t> bytes, bool overwrite) {
+  RIG_ASSIGN_OR_RETURN(auto dir, SplitInside(root, rel, /*create=*/true));
+  return WriteAtomicAt(dir.first.fd, (root / rel).parent_path(), dir.second, bytes, overwrite);
+}
+
+Result<std::vector<uint8_t>> ReadSessionFile(const fs::path& root, const std::string& rel) {
+  RIG_ASSIGN_OR_RETURN(auto dir, SplitInside(root, rel, /*create=*/false));
+  const fs::path path = root / rel;
+  Fd fd(::openat(dir.first.fd, dir.second.c_str(), O_RDONLY | O_NOFOLLOW | O_CLOEXEC));
+  if (fd.fd < 0) {
+    if (errno == ELOOP) return LinkRefused(path);
+    return MakeError(ErrorCode::kNotFound, path.string(), "cannot open file: {}", std::strerror(errno));
   }
-  if (fd < 0) return Errno(tmp, "cannot create temporary file");
-  Status st = WriteAll(fd, bytes.data(), bytes.size(), tmp);
-  if (st.ok() && ::fsync(fd) != 0) st = Errno(tmp, "fsync failed");
-  if (::close(fd) != 0 && st.ok()) st = Errno(tmp, "close failed");
-  if (!st.ok()) {
-    ::unlink(tmp.c_str());
-    return st;
-  }
-  if (overwrite) {
-    if (::rename(tmp.c_str(), path.c_str()) != 0) {
-      Error e = Errno(path, "rename failed");
-      ::unlink(tmp.c_str());
-      return e;
-    }
-  } else {
-    // link() fails if the target exists: no window in which an existing file is replaced.
-    if (::link(tmp.c_str(), path.c_str()) != 0) {
-      Error e = errno == EEXIST
-                    ? MakeError(ErrorCode::kIo, path.string(), "refusing to overwrite an existing file")
-                    : Errno(path, "link failed");
-      ::unlink(tmp.c_str());
-      return e;
-    }
-    ::unlink(tmp.c_str());
-  }
-  return FsyncDirectory(dir);
+  struct stat st {};
+  if (::fstat(fd.fd, &st) != 0 || !S_ISREG(st.st_mode)) return LinkRefused(path);
+  RIG_ASSIGN_OR_RETURN(std::string text, ReadAllFd(fd.fd, path, size_t{1} << 34));
+  return std::vector<uint8_t>(text.begin(), text.end());
+}
+
+Result<fs::path> EnsureSessionFolder(const fs::path& root, const std::string& rel) {
+  const std::string problem = SessionRelativePathProblem(rel);
+  if (!problem.empty())
+    return MakeError(ErrorCode::kInvalidInput, (root / rel).string(), "path {}", problem);
+  RIG_ASSIGN_OR_RETURN(Fd dir, OpenFolderInside(root, Components(rel), /*create=*/true));
+  return root / rel;
+}
+
+Status CheckSessionTree(const fs::path& root) {
+  auto check = [&](const fs::path& p, bool folder) -> Status {
+    struct stat st {};
+    if (::lstat(p.c_str(), &st) != 0) return Ok();  // absent: made when needed
+    if (folder ? !S_ISDIR(st.st_mode) : !S_ISREG(st.st_mode)) return LinkRefused(p);
+    return Ok();
+  };
+  for (const char* f : {".lock", "journal.jsonl", "log.txt", "session.toml"})
+    RIG_TRY(check(root / f, false));
+  for (const char* d : {"frames", "hdr", "calib", "model", "truth", "render"})
+    RIG_TRY(check(root / d, true));
+  std::error_code ec;
+  if (fs::is_directory(fs::symlink_status(root / "frames", ec)))
+    for (auto it = fs::directory_iterator(root / "frames", ec); !ec && it != fs::directory_iterator();
+         it.increment(ec))
+      RIG_TRY(check(it->path(), true));
+  return Ok();
 }
 
 Status WriteFileAtomic(const fs::path& path, const std::string& text, bool overwrite) {
@@ -133,64 +286,39 @@ Result<std::vector<uint8_t>> ReadFileBytes(const fs::path& path) {
 // ---- Journal ---------------------------------------------------------------------------
 
 Result<JournalContents> Journal::Read(const fs::path& path) {
-  JournalContents out;
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return MakeError(ErrorCode::kNotFound, path.string(), "cannot open journal");
-  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  size_t pos = 0;
-  int line_no = 0;
-  while (pos < text.size()) {
-    size_t nl = text.find('\n', pos);
-    ++line_no;
-    if (nl == std::string::npos) {
-      // No newline: the write of this record never completed.
-      out.torn_tail = true;
-      out.warnings.push_back(fmt::format("{}:{}: last record is incomplete (cut by a crash); ignored",
-                                         path.string(), line_no));
-      break;
-    }
-    std::string line = text.substr(pos, nl - pos);
-    if (!line.empty()) {
-      auto j = nlohmann::json::parse(line, nullptr, /*allow_exceptions=*/false);
-      if (j.is_discarded()) {
-        if (nl + 1 == text.size()) {
-          out.torn_tail = true;
-          out.warnings.push_back(fmt::format("{}:{}: last record is damaged; ignored",
-                                             path.string(), line_no));
-          break;
-        }
-        return MakeError(ErrorCode::kCorrupt, fmt::format("{}:{}", path.string(), line_no),
-                         "journal record is not valid JSON");
-      }
-      out.records.push_back(std::move(j));
-    }
-    pos = nl + 1;
-    out.valid_bytes = pos;
+  Fd fd(::open(path.c_str(), O_RDONLY | O_NOFOLLOW | O_CLOEXEC));
+  if (fd.fd < 0) {
+    if (errno == ELOOP) return LinkRefused(path);
+    return MakeError(ErrorCode::kNotFound, path.string(), "cannot open journal");
   }
-  return out;
+  struct stat st {};
+  if (::fstat(fd.fd, &st) != 0 || !S_ISREG(st.st_mode)) return LinkRefused(path);
+  RIG_ASSIGN_OR_RETURN(std::string text, ReadAllFd(fd.fd, path, kMaxJournalBytes));
+  return ParseJournal(text, path.string());
 }
 
-Result<Journal> Journal::Open(const fs::path& path) {
-  if (fs::exists(path)) {
-    RIG_ASSIGN_OR_RETURN(JournalContents c, Read(path));
-    if (c.torn_tail) {
-      for (const auto& w : c.warnings) Log("session")->warn("{}", w);
-      if (::truncate(path.c_str(), static_cast<off_t>(c.valid_bytes)) != 0)
-        return Errno(path, "cannot cut the torn journal tail");
-    }
+Result<Journal> Journal::Open(const fs::path& path, JournalContents* contents) {
+  int raw = ::open(path.c_str(), O_RDWR | O_CREAT | O_APPEND | O_NOFOLLOW | O_CLOEXEC, 0644);
+  if (raw < 0) {
+    if (errno == ELOOP) return LinkRefused(path);
+    return Errno(path, "cannot open journal");
   }
-  int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
-  if (fd < 0) return Errno(path, "cannot open journal");
-  if (::fsync(fd) != 0) {
-    ::close(fd);
-    return Errno(path, "fsync failed");
+  Fd fd(raw);
+  struct stat st {};
+  if (::fstat(fd.fd, &st) != 0 || !S_ISREG(st.st_mode)) return LinkRefused(path);
+  RIG_ASSIGN_OR_RETURN(std::string text, ReadAllFd(fd.fd, path, kMaxJournalBytes));
+  RIG_ASSIGN_OR_RETURN(JournalContents c, ParseJournal(text, path.string()));
+  if (c.torn_tail) {
+    for (const auto& w : c.warnings) Log("session")->warn("{}", w);
+    if (::ftruncate(fd.fd, static_cast<off_t>(c.valid_bytes)) != 0)
+      return Errno(path, "cannot cut the torn journal tail");
   }
-  Status st = FsyncDirectory(path.parent_path().empty() ? fs::path(".") : path.parent_path());
-  if (!st.ok()) {
-    ::close(fd);
-    return st.error();
-  }
-  return Journal(path, fd);
+  if (::fsync(fd.fd) != 0) return Errno(path, "fsync failed");
+  RIG_TRY(FsyncDirectory(path.parent_path().empty() ? fs::path(".") : path.parent_path()));
+  if (contents) *contents = std::move(c);
+  Journal j(path, fd.fd);
+  fd.fd = -1;
+  return j;
 }
 
 Journal::Journal(Journal&& o) noexcept : path_(std::move(o.path_)), fd_(o.fd_) { o.fd_ = -1; }
@@ -221,8 +349,16 @@ Status Journal::Append(nlohmann::json record) {
 
 Result<SessionLock> SessionLock::Acquire(const fs::path& session_dir) {
   fs::path p = session_dir / ".lock";
-  int fd = ::open(p.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-  if (fd < 0) return Errno(p, "cannot open session lock");
+  int fd = ::open(p.c_str(), O_RDWR | O_CREAT | O_NOFOLLOW | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    if (errno == ELOOP) return LinkRefused(p);
+    return Errno(p, "cannot open session lock");
+  }
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    ::close(fd);
+    return LinkRefused(p);
+  }
   if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
     int err = errno;
     char buf[32] = {0};
@@ -266,53 +402,96 @@ fs::path SessionLayout::Frame(const std::string& pose, int index, double exposur
   return frames() / pose / fmt::format("{}_{:.5f}.{}", index, exposure_s, ext);
 }
 
+namespace {
+
+// Opens SESSION/log.txt for appending without following a link, and hands the logger that
+// very file (through /proc/self/fd, which names the open file, not a path to resolve again).
+void OpenSessionLog(const SessionLayout& layout) {
+  const fs::path log = layout.log();
+  Fd fd(::open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_NOFOLLOW | O_CLOEXEC, 0644));
+  struct stat st {};
+  if (fd.fd < 0 || ::fstat(fd.fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    Log("session")->warn("cannot open {} ({}); logging to the console only", log.string(),
+                         fd.fd < 0 ? std::strerror(errno) : "not a regular file");
+    return;
+  }
+  const std::string via = fmt::format("/proc/self/fd/{}", fd.fd);
+  if (!AddLogFile(via))
+    Log("session")->warn("cannot open {}; logging to the console only", log.string());
+}
+
+std::string ConfigText(const Config& config) {
+  return "# The resolved configuration of this session. Never edit it: device settings change\n"
+         "# through 'rig resume SESSION --set KEY=VALUE', which journals the change.\n"
+         "# Read from: " + config.source + "\n\n" + ToToml(config);
+}
+
+nlohmann::json SettingsRecord(const char* event, const Config& config) {
+  const auto settings = FlattenConfig(config);
+  return {{"event", event}, {"digest", SettingsDigest(settings)}, {"settings", settings}};
+}
+
+}  // namespace
+
 Result<Session> Session::Create(const fs::path& dir, const Config& config) {
   std::error_code ec;
+  const bool existed = fs::exists(fs::symlink_status(dir, ec));
   fs::create_directories(dir, ec);
   if (ec) return MakeError(ErrorCode::kIo, dir.string(), "cannot create session folder: {}", ec.message());
-  RIG_ASSIGN_OR_RETURN(SessionLock lock, SessionLock::Acquire(dir));
   SessionLayout layout{dir};
-  if (fs::exists(layout.journal()) || fs::exists(layout.config()))
+  RIG_TRY(CheckSessionTree(dir));
+  RIG_ASSIGN_OR_RETURN(SessionLock lock, SessionLock::Acquire(dir));
+  if (fs::exists(fs::symlink_status(layout.journal(), ec)) ||
+      fs::exists(fs::symlink_status(layout.config(), ec)))
     return MakeError(ErrorCode::kInvalidInput, dir.string(),
                      "already holds a session; use 'rig resume {}' or choose another folder",
                      dir.string());
-  for (const fs::path& p : {layout.frames(), layout.hdr(), layout.calib(), layout.model()}) {
-    fs::create_directories(p, ec);
-    if (ec) return MakeError(ErrorCode::kIo, p.string(), "cannot create folder: {}", ec.message());
+  for (const char* p : {"frames", "hdr", "calib", "model"}) {
+    auto made = EnsureSessionFolder(dir, p);
+    if (!made.ok()) return made.error();
   }
-  std::string header = "# The resolved configuration of this session (never edited afterwards).\n"
-                       "# Read from: " + config.source + "\n\n";
-  RIG_TRY(WriteFileAtomic(layout.config(), header + ToToml(config), /*overwrite=*/false));
+  const std::string text = ConfigText(config);
+  RIG_TRY(WriteSessionFile(dir, "session.toml",
+                           std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(text.data()), text.size()),
+                           /*overwrite=*/false));
   RIG_ASSIGN_OR_RETURN(Journal journal, Journal::Open(layout.journal()));
-  if (!AddLogFile(layout.log().string()))
-    Log("session")->warn("cannot open {}; logging to the console only", layout.log().string());
-  return Session(layout, config, std::move(lock), std::move(journal), JournalContents{});
+  OpenSessionLog(layout);
+  // What the stored configuration is: `rig resume` refuses a session.toml that differs.
+  nlohmann::json rec = SettingsRecord("config", config);
+  RIG_TRY(journal.Append(rec));
+  JournalContents history;
+  history.records.push_back(rec);
+  Session s(layout, config, std::move(lock), std::move(journal), std::move(history));
+  s.created_session_ = true;
+  s.created_root_ = !existed;
+  return s;
 }
 
 Result<Session> Session::OpenExisting(const fs::path& dir) {
   SessionLayout layout{dir};
-  if (!fs::exists(layout.config()))
+  std::error_code ec;
+  if (!fs::exists(fs::symlink_status(layout.config(), ec)))
     return MakeError(ErrorCode::kNotFound, dir.string(), "not a session (no session.toml)");
+  RIG_TRY(CheckSessionTree(dir));
   RIG_ASSIGN_OR_RETURN(SessionLock lock, SessionLock::Acquire(dir));
-  ConfigResult cr = LoadConfig(layout.config().string());
+  RIG_ASSIGN_OR_RETURN(std::vector<uint8_t> toml, ReadSessionFile(dir, "session.toml"));
+  if (toml.size() > kMaxConfigBytes)
+    return MakeError(ErrorCode::kInvalidInput, layout.config().string(),
+                     "{} bytes: a configuration is at most {} bytes", toml.size(), kMaxConfigBytes);
+  ConfigResult cr = ParseConfig(std::string(toml.begin(), toml.end()), layout.config().string());
   if (!cr.ok()) return cr.AsError();
   JournalContents history;
-  if (fs::exists(layout.journal())) {
-    RIG_ASSIGN_OR_RETURN(history, Journal::Read(layout.journal()));
-  }
-  RIG_ASSIGN_OR_RETURN(Journal journal, Journal::Open(layout.journal()));
-  if (!AddLogFile(layout.log().string()))
-    Log("session")->warn("cannot open {}; logging to the console only", layout.log().string());
+  RIG_ASSIGN_OR_RETURN(Journal journal, Journal::Open(layout.journal(), &history));
+  OpenSessionLog(layout);
   // Temporaries of writers that were killed (".<name>.tmp..."): never anything's only copy —
   // a file exists under its own name only once complete — and nobody else writes here while
   // the lock is held.
   int stale = 0;
-  std::error_code ec;
   for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::recursive_directory_iterator();
        it.increment(ec)) {
     const std::string name = it->path().filename().string();
     if (name.size() > 1 && name[0] == '.' && name.find(".tmp") != std::string::npos &&
-        it->is_regular_file(ec)) {
+        it->is_regular_file(ec) && !it->is_symlink(ec)) {
       std::error_code rm;
       if (fs::remove(it->path(), rm)) ++stale;
     }
@@ -321,17 +500,118 @@ Result<Session> Session::OpenExisting(const fs::path& dir) {
   return Session(layout, cr.config, std::move(lock), std::move(journal), std::move(history));
 }
 
+Status Session::CheckStoredConfig() const {
+  const nlohmann::json* last = nullptr;
+  for (const auto& r : history_.records)
+    if (r["event"] == "config" || r["event"] == "settings_changed") last = &r;
+  if (!last) {
+    Log("session")->warn("{} holds no digest of the configuration (an older session); "
+                         "session.toml is taken as it is", layout_.journal().string());
+    return Ok();
+  }
+  std::map<std::string, std::string> journaled =
+      (*last)["settings"].get<std::map<std::string, std::string>>();
+  if (SettingsDigest(journaled) != (*last)["digest"].get<std::string>())
+    return MakeError(ErrorCode::kCorrupt, layout_.journal().string(),
+                     "the journaled configuration does not match its own digest");
+  const auto now = FlattenConfig(config_);
+  if (SettingsDigest(now) == SettingsDigest(journaled)) return Ok();
+  std::string changed;
+  int n = 0;
+  auto note = [&](const std::string& key, const std::string& before, const std::string& after) {
+    if (++n <= 8)
+      changed += fmt::format("{}{} ({} -> {})", changed.empty() ? "" : ", ", key,
+                             before.empty() ? "unset" : before, after.empty() ? "unset" : after);
+  };
+  for (const auto& [k, v] : journaled) {
+    auto it = now.find(k);
+    const std::string after = it == now.end() ? "" : it->second;
+    if (after != v) note(k, v, after);
+  }
+  for (const auto& [k, v] : now)
+    if (!journaled.count(k)) note(k, "", v);
+  if (n > 8) changed += fmt::format(" and {} more", n - 8);
+  return MakeError(ErrorCode::kInvalidInput, layout_.config().string(),
+                   "changed since the session started: {}; a session's stored configuration "
+                   "does not change (device settings only through 'rig resume {} --set "
+                   "KEY=VALUE', which journals the change)",
+                   changed, layout_.root.string());
+}
+
+Result<std::vector<SettingChange>> Session::ChangeDeviceSettings(
+    const std::vector<std::string>& assignments) {
+  Config next = config_;
+  std::vector<SettingChange> changes;
+  for (const auto& a : assignments) {
+    SettingChange c;
+    RIG_ASSIGN_OR_RETURN(next, ApplySetting(next, a, &c));
+    changes.push_back(c);
+  }
+  // The change against the journal's last configuration (a session.toml rewrite a crash cut
+  // off is finished by giving the same --set again).
+  nlohmann::json rec = SettingsRecord("settings_changed", next);
+  nlohmann::json list = nlohmann::json::array();
+  const auto before = FlattenConfig(config_);
+  for (auto& c : changes) {
+    auto it = before.find(c.key);
+    c.old_value = it == before.end() ? "" : it->second;
+    list.push_back({{"key", c.key}, {"old", c.old_value}, {"new", c.new_value}});
+  }
+  rec["changes"] = list;
+  RIG_TRY(journal_.Append(rec));
+  history_.records.push_back(rec);
+  const std::string text = ConfigText(next);
+  RIG_TRY(WriteSessionFile(layout_.root, "session.toml",
+                           std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(text.data()), text.size()),
+                           /*overwrite=*/true));
+  config_ = next;
+  for (const auto& c : changes)
+    Log("session")->info("setting changed key={} old=\"{}\" new=\"{}\"", c.key, c.old_value, c.new_value);
+  return changes;
+}
+
+bool Session::RemoveIfNothingStored() {
+  if (!created_session_) return false;
+  // Anything captured keeps the whole session.
+  for (const auto& r : history_.records)
+    if (r["event"] == "frame") return false;
+  auto journal = Journal::Read(layout_.journal());
+  if (!journal.ok()) return false;
+  for (const auto& r : journal->records)
+    if (r["event"] == "frame") return false;
+  std::error_code ec;
+  if (fs::exists(layout_.frames(), ec))
+    for (auto it = fs::recursive_directory_iterator(layout_.frames(), ec);
+         !ec && it != fs::recursive_directory_iterator(); it.increment(ec))
+      if (!it->is_directory(ec)) return false;  // a file under frames/: keep everything
+  for (const char* f : {"session.toml", "journal.jsonl", "log.txt"}) fs::remove(layout_.root / f, ec);
+  // Folders Create() made (and the simulator's truth/ written for this run); only when empty
+  // of anything but folders and the truth this run wrote.
+  fs::remove_all(layout_.truth(), ec);
+  for (const fs::path& d : {layout_.frames(), layout_.hdr(), layout_.calib(), layout_.model()}) {
+    bool empty = true;
+    for (auto it = fs::recursive_directory_iterator(d, ec);
+         !ec && it != fs::recursive_directory_iterator(); it.increment(ec))
+      if (!it->is_directory(ec)) empty = false;
+    if (empty) fs::remove_all(d, ec);
+  }
+  fs::remove(layout_.root / ".lock", ec);  // our flock dies with the descriptor
+  if (!created_root_) return false;
+  return fs::remove(layout_.root, ec);  // only if now empty
+}
+
 Result<nlohmann::json> Session::StoreFrame(const std::string& pose, int index, double exposure_s,
                                            const std::string& ext, std::span<const uint8_t> bytes,
                                            nlohmann::json extra) {
-  fs::path path = layout_.Frame(pose, index, exposure_s, ext);
-  RIG_TRY(WriteFileAtomic(path, bytes, /*overwrite=*/false));
+  const std::string rel =
+      fs::relative(layout_.Frame(pose, index, exposure_s, ext), layout_.root).string();
+  RIG_TRY(WriteSessionFile(layout_.root, rel, bytes, /*overwrite=*/false));
   nlohmann::json rec = extra.is_object() ? std::move(extra) : nlohmann::json::object();
   rec["event"] = "frame";
   rec["pose"] = pose;
   rec["index"] = index;
   rec["exposure_s"] = exposure_s;
-  rec["file"] = fs::relative(path, layout_.root).string();
+  rec["file"] = rel;
   rec["bytes"] = bytes.size();
   rec["crc32"] = Crc32(bytes);
   RIG_TRY(journal_.Append(rec));

@@ -17,6 +17,8 @@
 #include <nlohmann/json.hpp>
 
 #include "config/config.h"
+#include "config/settings.h"
+#include "capture/session/journal_reader.h"
 #include "config/result.h"
 
 namespace rig {
@@ -35,21 +37,29 @@ Status WriteFileAtomic(const fs::path& path, const std::string& text, bool overw
 Status FsyncDirectory(const fs::path& dir);
 Result<std::vector<uint8_t>> ReadFileBytes(const fs::path& path);
 
-// What was read back from a journal.
-struct JournalContents {
-  std::vector<nlohmann::json> records;
-  bool torn_tail = false;     // the last line was cut by a crash (ignored)
-  size_t valid_bytes = 0;     // length of the intact prefix
-  std::vector<std::string> warnings;
-};
+// The same inside a session folder, never through a symbolic link: `rel` (checked by
+// SessionRelativePathProblem) is walked from `root` with openat(O_NOFOLLOW) component by
+// component; missing folders are created (mkdirat) on the way. A link anywhere below `root`
+// is refused (kInvalidInput), so nothing is written outside the session.
+Status WriteSessionFile(const fs::path& root, const std::string& rel,
+                        std::span<const uint8_t> bytes, bool overwrite = true);
+Result<std::vector<uint8_t>> ReadSessionFile(const fs::path& root, const std::string& rel);
+// Creates (or checks) the folder `rel` below `root` the same way; returns its path.
+Result<fs::path> EnsureSessionFolder(const fs::path& root, const std::string& rel);
+// The session's own names (.lock, journal.jsonl, log.txt, session.toml, frames/, hdr/,
+// calib/, model/, truth/, render/ and every frames/<pose>/): refused when any is a symbolic
+// link or not of its kind.
+Status CheckSessionTree(const fs::path& root);
 
 // Append-only JSON-lines journal. Every Append() is written and fsync'd before it returns.
 class Journal {
  public:
-  // Opens for appending; a torn last line (from a crash) is cut off first, and said so.
-  static Result<Journal> Open(const fs::path& path);
-  // Reads every intact record; a torn last line is reported, not an error. A damaged line
-  // in the middle is an error naming its line number.
+  // Opens for appending (O_NOFOLLOW: a link is refused); a torn last line (from a crash) is
+  // cut off first, and said so. `contents`, when given, receives what was read.
+  static Result<Journal> Open(const fs::path& path, JournalContents* contents = nullptr);
+  // Reads every intact record through ParseJournal (each record validated); a torn last
+  // line is reported, not an error. A damaged line in the middle is an error naming its
+  // line number. A symbolic link is refused.
   static Result<JournalContents> Read(const fs::path& path);
 
   Journal(Journal&&) noexcept;
@@ -71,6 +81,7 @@ class Journal {
 // when the holder dies, however it dies.
 class SessionLock {
  public:
+  // Opens SESSION/.lock with O_NOFOLLOW (a link there is refused, never truncated).
   static Result<SessionLock> Acquire(const fs::path& session_dir);
   SessionLock(SessionLock&&) noexcept;
   SessionLock& operator=(SessionLock&&) noexcept;
@@ -109,6 +120,21 @@ class Session {
   // Opens an existing session (for resume or processing): lock, configuration, journal.
   static Result<Session> OpenExisting(const fs::path& dir);
 
+  // Refuses (kInvalidInput, naming the settings) a session.toml that differs from the
+  // configuration the journal recorded (its "config" record or the last "settings_changed").
+  Status CheckStoredConfig() const;
+  // Changes device settings ("camera.port=usb:001,004"; DeviceSettingKeys() only): validated,
+  // journaled as "settings_changed" with old and new values and the new digest, then
+  // session.toml rewritten atomically. Returns the changes.
+  Result<std::vector<SettingChange>> ChangeDeviceSettings(const std::vector<std::string>& assignments);
+
+  // After a first run that stored nothing (no camera found, a wrong port): removes what
+  // Create() made — never a frame, never a folder that held anything before. Returns
+  // whether the session folder itself is gone. Only for a session made by Create().
+  bool RemoveIfNothingStored();
+  // Whether this object made the session folder (Create) rather than opened one.
+  bool created() const { return created_root_ || created_session_; }
+
   const SessionLayout& layout() const { return layout_; }
   const Config& config() const { return config_; }
   Journal& journal() { return journal_; }
@@ -131,6 +157,8 @@ class Session {
   SessionLock lock_;
   Journal journal_;
   JournalContents history_;
+  bool created_session_ = false;  // Create() wrote session.toml here
+  bool created_root_ = false;     // ... and made the folder itself
 };
 
 }  // namespace rig

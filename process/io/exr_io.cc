@@ -80,6 +80,13 @@ Status WriteExrStriped(const std::string& path, int width, int height,
     return MakeError(ErrorCode::kInvalidInput, path, "no channels to write");
   }
   const std::string tmp = TempPathFor(path);
+  {
+    // The folder is made when missing (a removed hdr/ is how a re-merge is forced).
+    const fs::path dir = fs::path(path).parent_path();
+    std::error_code ec;
+    if (!dir.empty()) fs::create_directories(dir, ec);
+    if (ec) return MakeError(ErrorCode::kIo, path, "cannot create folder {}: {}", dir.string(), ec.message());
+  }
   try {
     threads = std::max(threads, 1);
     EnsureGlobalThreads(threads);
@@ -211,11 +218,22 @@ Result<ExrImage> ReadExr(const std::string& path, int threads) {
     const Imf::Header& header = in.header();
     const Imath::Box2i dw = header.dataWindow();
     ExrImage image;
-    image.width = dw.max.x - dw.min.x + 1;
-    image.height = dw.max.y - dw.min.y + 1;
-    if (image.width <= 0 || image.height <= 0) {
+    // In 64 bits: a hostile data window overflows int.
+    const int64_t w64 = int64_t{dw.max.x} - dw.min.x + 1, h64 = int64_t{dw.max.y} - dw.min.y + 1;
+    if (w64 <= 0 || h64 <= 0) {
       return MakeError(ErrorCode::kCorrupt, path, "empty data window");
     }
+    int64_t nch = 0;
+    for (auto it = header.channels().begin(); it != header.channels().end(); ++it) ++nch;
+    if (w64 > kMaxExrSide || h64 > kMaxExrSide || w64 * h64 > kMaxExrPixels ||
+        w64 * h64 * nch > kMaxExrSamples) {
+      return MakeError(ErrorCode::kCorrupt, path,
+                       "{}x{} pixels x {} channels is larger than this reader accepts (at most "
+                       "{} px a side, {} pixels, {} samples)",
+                       w64, h64, nch, kMaxExrSide, kMaxExrPixels, kMaxExrSamples);
+    }
+    image.width = static_cast<int>(w64);
+    image.height = static_cast<int>(h64);
     Imf::FrameBuffer fb;
     for (auto it = header.channels().begin(); it != header.channels().end(); ++it) {
       if (it.channel().xSampling != 1 || it.channel().ySampling != 1) {
@@ -244,6 +262,8 @@ Result<ExrImage> ReadExr(const std::string& path, int threads) {
     return image;
   } catch (const Iex::BaseExc& e) {
     return MakeError(ErrorCode::kCorrupt, path, "cannot read EXR: {}", e.what());
+  } catch (const std::bad_alloc&) {
+    return MakeError(ErrorCode::kInvalidInput, path, "cannot read EXR: too large for memory");
   } catch (const std::exception& e) {
     return MakeError(ErrorCode::kIo, path, "cannot read EXR: {}", e.what());
   }

@@ -2,6 +2,7 @@
 // so that metadata (pose, exposures, response id, basis, order ...) travels with pixels.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <map>
 #include <string>
@@ -14,6 +15,12 @@
 namespace rig {
 
 enum class ExrPixelType { kHalf, kFloat };
+
+// What ReadExr accepts before allocating (docs/robustness.md); larger files are refused as
+// damaged input (exit 2).
+inline constexpr int64_t kMaxExrSide = 1 << 16;
+inline constexpr int64_t kMaxExrPixels = int64_t{1} << 28;   // 16384 x 16384
+inline constexpr int64_t kMaxExrSamples = int64_t{1} << 31;  // pixels x channels
 
 struct ExrImage {
   int width = 0, height = 0;

@@ -1,6 +1,7 @@
 // Radiance maps with known lamp angles, fitted in memory or streamed.
 #include "process/model/map_fit.h"
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -28,6 +29,15 @@ Result<std::vector<MapListEntry>> ReadMapList(const std::string& list) {
     if (!(is >> e.path >> e.h_deg >> e.v_deg) || (is >> extra)) {
       return MakeError(ErrorCode::kInvalidInput, fmt::format("{}:{}", list, lineno),
                        "expected '<radiance.exr> <h_deg> <v_deg>', got '{}'", line);
+    }
+    if (!std::isfinite(e.h_deg) || !std::isfinite(e.v_deg) || std::abs(e.h_deg) > 360 ||
+        std::abs(e.v_deg) > 360) {
+      return MakeError(ErrorCode::kInvalidInput, fmt::format("{}:{}", list, lineno),
+                       "angles {} {} are not degrees in [-360, 360]", e.h_deg, e.v_deg);
+    }
+    if (out.size() >= 100000) {
+      return MakeError(ErrorCode::kInvalidInput, fmt::format("{}:{}", list, lineno),
+                       "more than 100000 maps in one list");
     }
     std::filesystem::path p(e.path);
     if (p.is_relative()) p = folder / p;

@@ -28,10 +28,29 @@ Result<double> ParseNumber(const std::map<std::string, std::string>& a, const st
     return MakeError(ErrorCode::kInvalidInput, context, "model header lacks '{}'", key);
   }
   char* end = nullptr;
-  const double v = std::strtod(it->second.c_str(), &end);
-  if (end == it->second.c_str()) {
+  const char* text = it->second.c_str();
+  const double v = std::strtod(text, &end);
+  while (end != text && (*end == ' ' || *end == '\t')) ++end;
+  if (end == text || *end != '\0') {
     return MakeError(ErrorCode::kInvalidInput, context, "model header '{}' is not a number: '{}'",
-                     key, it->second);
+                     key, it->second.substr(0, 80));
+  }
+  if (!std::isfinite(v)) {
+    return MakeError(ErrorCode::kInvalidInput, context, "model header '{}' is not finite: '{}'",
+                     key, it->second.substr(0, 80));
+  }
+  return v;
+}
+
+// A header number that must lie in [lo, hi] (and be whole when `integer`); no cast happens
+// before this check.
+Result<double> ParseRanged(const std::map<std::string, std::string>& a, const std::string& key,
+                           const std::string& context, double lo, double hi, bool integer) {
+  RIG_ASSIGN_OR_RETURN(double v, ParseNumber(a, key, context));
+  if (v < lo || v > hi || (integer && v != std::floor(v))) {
+    return MakeError(ErrorCode::kInvalidInput, context,
+                     "model header '{}' = {} is out of range: expected {} in [{}, {}]", key, v,
+                     integer ? "a whole number" : "a number", lo, hi);
   }
   return v;
 }
@@ -166,7 +185,7 @@ Result<Model> ModelFromHeader(const std::map<std::string, std::string>& a, int w
     return it->second;
   };
   RIG_ASSIGN_OR_RETURN(std::string basis_name, get("basis"));
-  RIG_ASSIGN_OR_RETURN(double order, ParseNumber(a, "order", context));
+  RIG_ASSIGN_OR_RETURN(double order, ParseRanged(a, "order", context, 0, 64, true));
   auto basis = Basis::Create(basis_name, static_cast<int>(order));
   if (!basis.ok()) return basis.error().Within(context);
   ModelInfo i;
@@ -178,33 +197,72 @@ Result<Model> ModelFromHeader(const std::map<std::string, std::string>& a, int w
   if (!ps.ok()) return ps.error().Within(context);
   i.method = *pm;
   i.transform.space = *ps;
-  RIG_ASSIGN_OR_RETURN(i.transform.log_epsilon, ParseNumber(a, "fit_space_log_epsilon", context));
+  RIG_ASSIGN_OR_RETURN(i.transform.log_epsilon,
+                       ParseRanged(a, "fit_space_log_epsilon", context, 0, 1e6, false));
   RIG_ASSIGN_OR_RETURN(std::string e, get("lamp_radiance_rgb"));
   std::istringstream es(e);
   if (!(es >> i.lamp_radiance_rgb[0] >> i.lamp_radiance_rgb[1] >> i.lamp_radiance_rgb[2])) {
-    return MakeError(ErrorCode::kInvalidInput, context, "bad lamp_radiance_rgb '{}'", e);
+    return MakeError(ErrorCode::kInvalidInput, context, "bad lamp_radiance_rgb '{}'", e.substr(0, 80));
   }
-  auto opt = [&](const std::string& key, double fallback) {
-    auto v = ParseNumber(a, key, context);
-    return v.ok() ? *v : fallback;
+  for (double c : i.lamp_radiance_rgb) {
+    if (!std::isfinite(c) || c <= 0 || c > 1e30) {
+      return MakeError(ErrorCode::kInvalidInput, context,
+                       "lamp_radiance_rgb '{}' must be three finite positive numbers", e.substr(0, 80));
+    }
+  }
+  // Optional numbers: the fallback when absent; present and wrong is an error.
+  auto opt = [&](const std::string& key, double fallback, double lo, double hi,
+                 bool integer) -> Result<double> {
+    if (a.find(key) == a.end()) return fallback;
+    return ParseRanged(a, key, context, lo, hi, integer);
   };
-  i.lambda_relative = opt("lambda_relative", 0);
-  i.light_frame.h_offset_deg = opt("light_frame.h_offset_deg", 0);
-  i.light_frame.v_offset_deg = opt("light_frame.v_offset_deg", 0);
-  i.light_frame.h_sign = static_cast<int>(opt("light_frame.h_sign", 1));
-  i.light_frame.v_sign = static_cast<int>(opt("light_frame.v_sign", 1));
-  i.loo_rmse = opt("loo_rmse", 0);
-  i.condition = opt("condition_number", 0);
-  i.solved_condition = opt("solved_condition_number", 0);
-  i.sample_spacing_deg = opt("sample_spacing_deg", 0);
-  i.flagged_pixels = static_cast<size_t>(opt("flagged_pixels", 0));
+  // Figures only reported (a fit may record an infinite condition number): read as written.
+  auto info = [&](const std::string& key) {
+    auto it = a.find(key);
+    if (it == a.end()) return 0.0;
+    char* end = nullptr;
+    const double v = std::strtod(it->second.c_str(), &end);
+    return end == it->second.c_str() ? 0.0 : v;
+  };
+  i.lambda_relative = info("lambda_relative");
+  RIG_ASSIGN_OR_RETURN(i.light_frame.h_offset_deg, opt("light_frame.h_offset_deg", 0, -360, 360, false));
+  RIG_ASSIGN_OR_RETURN(i.light_frame.v_offset_deg, opt("light_frame.v_offset_deg", 0, -360, 360, false));
+  RIG_ASSIGN_OR_RETURN(double h_sign, opt("light_frame.h_sign", 1, -1, 1, true));
+  RIG_ASSIGN_OR_RETURN(double v_sign, opt("light_frame.v_sign", 1, -1, 1, true));
+  if (h_sign == 0 || v_sign == 0) {
+    return MakeError(ErrorCode::kInvalidInput, context,
+                     "model header light_frame.h_sign/v_sign must be 1 or -1");
+  }
+  i.light_frame.h_sign = static_cast<int>(h_sign);
+  i.light_frame.v_sign = static_cast<int>(v_sign);
+  i.loo_rmse = info("loo_rmse");
+  i.condition = info("condition_number");
+  i.solved_condition = info("solved_condition_number");
+  i.sample_spacing_deg = info("sample_spacing_deg");
+  const double pixels = static_cast<double>(std::max(width, 0)) * std::max(height, 0);
+  // A streamed fit writes a note here instead of a count: only a number is checked.
+  double flagged = 0;
+  if (auto it = a.find("flagged_pixels"); it != a.end()) {
+    char* end = nullptr;
+    std::strtod(it->second.c_str(), &end);
+    if (end != it->second.c_str()) {
+      RIG_ASSIGN_OR_RETURN(flagged, opt("flagged_pixels", 0, 0, pixels, true));
+    }
+  }
+  i.flagged_pixels = static_cast<size_t>(flagged);
   if (auto it = a.find("lamp_directions"); it != a.end()) {
     std::istringstream ds(it->second);
     std::string item;
     while (std::getline(ds, item, ';')) {
       std::istringstream is(item);
       Vec3 d;
-      if (is >> d[0] >> d[1] >> d[2]) i.lamp_directions.push_back(d);
+      if (item.find_first_not_of(" \t") == std::string::npos) continue;
+      if (!(is >> d[0] >> d[1] >> d[2]) || !std::isfinite(d[0]) || !std::isfinite(d[1]) ||
+          !std::isfinite(d[2]))
+        return MakeError(ErrorCode::kInvalidInput, context,
+                         "model header lamp_directions: '{}' is not three finite numbers",
+                         item.substr(0, 80));
+      i.lamp_directions.push_back(d);
     }
   }
   return Model(*basis, i, width, height);

@@ -1,5 +1,7 @@
 #include "process/render/radiance_file.h"
 
+#include <limits>
+
 #include <cctype>
 #include <filesystem>
 
@@ -16,7 +18,21 @@ Result<cv::Mat> ReadRadianceFile(const std::string& path) {
   if (!std::filesystem::is_regular_file(path, ec)) {
     return MakeError(ErrorCode::kNotFound, path, "no such file");
   }
-  if (ext == ".exr") return ReadRgbExr(path);
+  if (ext == ".exr") {
+    RIG_ASSIGN_OR_RETURN(cv::Mat exr, ReadRgbExr(path));
+    // NaN or infinite pixels would come out black without a word: refused, the first named.
+    cv::Point at;
+    if (!cv::checkRange(exr.reshape(1), true, &at)) {
+      cv::Mat nan;
+      cv::compare(exr.reshape(1), exr.reshape(1), nan, cv::CMP_NE);
+      cv::Mat inf = cv::abs(exr.reshape(1)) == std::numeric_limits<float>::infinity();
+      return MakeError(ErrorCode::kInvalidInput, path,
+                       "{} sample(s) are NaN and {} infinite (the first at pixel x={} y={}); a "
+                       "radiance map holds finite values only",
+                       cv::countNonZero(nan), cv::countNonZero(inf), at.x / 3, at.y);
+    }
+    return exr;
+  }
   if (ext != ".hdr" && ext != ".pic") {
     return MakeError(ErrorCode::kInvalidInput, path,
                      "unknown HDR format '{}' (.exr, .hdr or .pic expected)", ext);

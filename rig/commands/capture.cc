@@ -45,8 +45,14 @@ int RunResume(int argc, char** argv) {
                "every stored frame (size and CRC), redoes only what is missing or damaged.",
                "rig resume"};
   std::string dir, level;
+  std::vector<std::string> set;
   bool no_process = false, no_progress = false;
   app.add_option("SESSION", dir, "session folder")->required();
+  app.add_option("--set", set,
+                 "change a device setting first (KEY=VALUE, repeatable; e.g. "
+                 "camera.port=usb:001,004 or motor.port=/dev/ttyUSB1): validated, journaled "
+                 "with its old and new value, session.toml rewritten atomically. Never the "
+                 "grid, bracket or anything else that shapes a frame.");
   app.add_flag("--no-process", no_process, "store frames only");
   app.add_flag("--no-progress", no_progress, "no progress bar");
   AddLogLevelOption(app, &level);
@@ -55,6 +61,16 @@ int RunResume(int argc, char** argv) {
   auto session = Session::OpenExisting(dir);
   if (!session.ok()) return ReportError("resume", session.error());
   for (const auto& w : session->history().warnings) Log("session")->warn("{}", w);
+  if (!set.empty()) {
+    auto changes = session->ChangeDeviceSettings(set);
+    if (!changes.ok()) return ReportError("resume", changes.error());
+    for (const auto& c : *changes)
+      std::printf("setting %s: %s -> %s (journaled)\n", c.key.c_str(),
+                  c.old_value.empty() ? "unset" : c.old_value.c_str(), c.new_value.c_str());
+  }
+  // The stored configuration must be the one the journal recorded (or changed through --set).
+  Status same = session->CheckStoredConfig();
+  if (!same.ok()) return ReportError("resume", same.error());
   InstallStopHandlers();
   return RunSession(*session, /*resuming=*/true, !no_process, !no_progress);
 }

@@ -225,6 +225,13 @@ Result<RelightRequest> RequestFromArgs(const RenderArgs& a) {
     return Bad(a.out, !sweep ? "output must end in .exr, .png, .jpg or .tif"
                              : "a sweep's output must end in .avi (video), or .png/.exr (frames only)");
   }
+  {
+    // The output's folder must exist (it is not created: a typo would scatter renders).
+    const fs::path parent = fs::path(a.out).parent_path();
+    std::error_code ec;
+    if (!parent.empty() && !fs::is_directory(parent, ec))
+      return Bad(a.out, "the output folder '" + parent.string() + "' does not exist");
+  }
   if (a.exposure_s > 0 && !a.tonemap_name.empty()) return Bad("--exposure", "--exposure and --tonemap exclude each other");
   if (kind == RenderFileKind::kExr && (a.exposure_s > 0 || !a.tonemap_name.empty())) {
     return Bad(a.out, "an .exr holds linear radiance: --exposure and --tonemap need a picture output");

@@ -30,6 +30,15 @@ int RunSession(Session& session, bool resuming, bool process, bool progress) {
   Status st = daemon.Run(&summary);
   std::printf("%s\n", summary.ToString().c_str());
   if (!st.ok()) {
+    // A first run that stored nothing (no camera found, a wrong port) leaves no session
+    // behind: `rig capture` can simply run again with the right configuration.
+    if (!resuming && summary.frames_captured == 0 && session.RemoveIfNothingStored()) {
+      if (st.error().code == ErrorCode::kInterrupted) return 128 + StopSignal();
+      ReportError("capture", st.error());
+      std::fprintf(stderr, "rig: nothing was captured; the session folder %s was removed\n",
+                   layout.root.string().c_str());
+      return st.error().code == ErrorCode::kInvalidInput ? 2 : 1;
+    }
     if (st.error().code == ErrorCode::kInterrupted) return 128 + StopSignal();
     ReportError(resuming ? "resume" : "capture", st.error());
     std::fprintf(stderr, "rig: nothing captured is lost; fix the device and run 'rig resume %s'\n",
@@ -100,8 +109,9 @@ Status FitSessionModel(const Session& session) {
   options.threads = config.process.threads;
   ExrPixelType type = config.process.model_pixel_type == "float" ? ExrPixelType::kFloat : ExrPixelType::kHalf;
   std::error_code ec;
-  fs::create_directories(layout.model(), ec);
-  fs::path out = layout.model() / "model.exr";
+  // model/ inside the session, never through a link.
+  RIG_ASSIGN_OR_RETURN(fs::path model_dir, EnsureSessionFolder(layout.root, "model"));
+  fs::path out = model_dir / "model.exr";
   RIG_ASSIGN_OR_RETURN(StreamFitOutput fit, FitModelStreaming(in, options, out.string(), type));
   // What each order costs and gives, beside the model, and its size on disk.
   const auto model_bytes = fs::file_size(out, ec);

@@ -78,6 +78,35 @@ void ExpectCompleteAndConsistent(const fs::path& session, int poses, int exposur
   EXPECT_TRUE(done);
 }
 
+int FramesJournaled(const fs::path& session) {
+  std::ifstream in(session / "journal.jsonl");
+  std::string line;
+  int n = 0;
+  while (std::getline(in, line)) n += line.find("\"event\":\"frame\"") != std::string::npos;
+  return n;
+}
+
+// pose/index -> CRC-32 of the stored frame, from the latest journal records.
+std::map<std::pair<std::string, int>, uint32_t> FrameCrcs(const fs::path& session) {
+  std::map<std::pair<std::string, int>, uint32_t> out;
+  for (const auto& r : Records(session))
+    if (r["event"] == "frame") out[{r["pose"].get<std::string>(), r["index"].get<int>()}] = r["crc32"];
+  return out;
+}
+
+// Every file under `sub` (frames/ without the moved-aside copies, hdr/), relative path -> bytes.
+std::map<std::string, std::vector<uint8_t>> Files(const fs::path& session, const std::string& sub) {
+  std::map<std::string, std::vector<uint8_t>> out;
+  for (const auto& e : fs::recursive_directory_iterator(session / sub)) {
+    if (!e.is_regular_file()) continue;
+    const std::string rel = fs::relative(e.path(), session).string();
+    if (rel.find("/.") != std::string::npos) continue;
+    auto bytes = ReadFileBytes(e.path());
+    if (bytes.ok()) out[rel] = *bytes;
+  }
+  return out;
+}
+
 TEST(CaptureSession, DryRunStoresJournalsFramesTruthRadianceMapsAndModel) {
   std::string dir = testing::FreshTempDir("capture_full");
   std::string cfg = testing::WriteSimConfig(dir, kSmall);
@@ -159,6 +188,24 @@ TEST(CaptureSession, SigkillAtRandomMomentsThenResumeGivesEveryFrameExactlyOnce)
     EXPECT_FALSE(name[0] == '.' && name.find(".tmp") != std::string::npos) << e.path();
   }
   ExpectCompleteAndConsistent(session, 40, 4);
+  // The same session as an uninterrupted run, byte for byte: every frame (each frame's noise
+  // comes from seed, pose and exposure, not from how many captures a process made) and every
+  // radiance map.
+  fs::path clean = fs::path(dir) / "clean";
+  CommandResult ref = RunRig("capture --config " + cfg + " --out " + clean.string() +
+                             " --dry-run --no-progress");
+  ASSERT_EQ(ref.status, 0) << ref.output;
+  EXPECT_EQ(FrameCrcs(session), FrameCrcs(clean));
+  const auto frames = Files(session, "frames"), clean_frames = Files(clean, "frames");
+  EXPECT_EQ(frames.size(), 160u);
+  int differ = 0;
+  for (const auto& [rel, bytes] : clean_frames) differ += frames.count(rel) == 0 || frames.at(rel) != bytes;
+  EXPECT_EQ(differ, 0) << "of " << clean_frames.size() << " frames";
+  const auto maps = Files(session, "hdr"), clean_maps = Files(clean, "hdr");
+  EXPECT_EQ(maps.size(), 40u);
+  differ = 0;
+  for (const auto& [rel, bytes] : clean_maps) differ += maps.count(rel) == 0 || maps.at(rel) != bytes;
+  EXPECT_EQ(differ, 0) << "of " << clean_maps.size() << " radiance maps";
 }
 
 TEST(CaptureSession, TransientCameraMotorAndLampFaultsAreRetried) {
@@ -220,7 +267,12 @@ TEST(CaptureSession, SigintFinishesTheFrameParksAndResumeCompletes) {
   fs::path session = fs::path(dir) / "S";
   pid_t pid = testing::SpawnRig({"capture", "--config", cfg, "--out", session.string(), "--dry-run",
                                  "--no-progress", "--no-process"}, dir + "/log.txt");
-  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  // By progress, not by the clock (a sanitizer build can spend longer starting than any fixed
+  // window): the signal goes once ten frames are journaled.
+  const auto t0 = std::chrono::steady_clock::now();
+  while (FramesJournaled(session) < 10 &&
+         std::chrono::steady_clock::now() - t0 < std::chrono::seconds(60))
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
   kill(pid, SIGINT);
   ASSERT_EQ(testing::WaitRig(pid), 128 + SIGINT);
   auto records = Records(session);

@@ -34,7 +34,7 @@ TEST(Journal, AppendsAndReadsBackRecords) {
   {
     auto j = Journal::Open(dir / "journal.jsonl");
     ASSERT_TRUE(j.ok()) << j.error().ToString();
-    for (int i = 0; i < 5; ++i) ASSERT_TRUE(j->Append({{"event", "frame"}, {"index", i}}).ok());
+    for (int i = 0; i < 5; ++i) ASSERT_TRUE(j->Append({{"event", "note"}, {"index", i}}).ok());
   }
   auto c = Journal::Read(dir / "journal.jsonl");
   ASSERT_TRUE(c.ok());
@@ -202,7 +202,8 @@ TEST(Session, CreateRefusesAnExistingSessionAndStoresFramesWithChecksums) {
   EXPECT_THAT(dup.error().ToString(), ::testing::HasSubstr("already holds a session"));
   auto opened = Session::OpenExisting(dir);
   ASSERT_TRUE(opened.ok()) << opened.error().ToString();
-  ASSERT_EQ(opened->history().records.size(), 1u);
+  ASSERT_EQ(opened->history().records.size(), 2u);  // the configuration's digest, the frame
+  EXPECT_EQ(opened->history().records[0]["event"], "config");
   EXPECT_EQ(opened->config().bracket.count, 3);
 }
 
