@@ -18,6 +18,9 @@ packages=(
   snakemake
   # tests and benchmarks (libltdl-dev, xz-utils: building libgphoto2's virtual camera)
   libgtest-dev libgmock-dev libbenchmark-dev libltdl-dev xz-utils
+  # the sanitizer build and the fuzzers (scripts/test-sanitize.sh, scripts/fuzz.sh): clang,
+  # its sanitizer and libFuzzer runtimes, llvm-symbolizer for the reports' stack traces
+  clang-14 libclang-rt-14-dev llvm-14
 )
 
 missing=()

@@ -4,3 +4,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/build.sh
 ctest --test-dir build -j2 --output-on-failure --timeout 600 "$@"
+# Then the same suite under ASan+UBSan (build-asan/) and a bounded fuzz run of every reader,
+# ~1.5 min (docs/fuzzing.md). RIG_TEST_SANITIZE=0 leaves both out (a quick local run).
+if [ "${RIG_TEST_SANITIZE:-1}" != 0 ]; then
+  bash scripts/test-sanitize.sh "$@"
+  bash scripts/fuzz.sh --seconds "${RIG_FUZZ_SECONDS:-8}"
+fi

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdint>
 #include <cstdio>
 #include <exception>
 #include <filesystem>
@@ -211,11 +212,18 @@ Result<ExrImage> ReadExr(const std::string& path, int threads) {
     const Imf::Header& header = in.header();
     const Imath::Box2i dw = header.dataWindow();
     ExrImage image;
-    image.width = dw.max.x - dw.min.x + 1;
-    image.height = dw.max.y - dw.min.y + 1;
-    if (image.width <= 0 || image.height <= 0) {
+    // In 64 bits: a window from INT_MIN to INT_MAX would overflow int.
+    const int64_t w = int64_t{dw.max.x} - dw.min.x + 1, h = int64_t{dw.max.y} - dw.min.y + 1;
+    if (w <= 0 || h <= 0) {
       return MakeError(ErrorCode::kCorrupt, path, "empty data window");
     }
+    // Bounded before any allocation: 65536 per side, 2^28 pixels (a 24 MP frame is 2^24.5).
+    if (w > (1 << 16) || h > (1 << 16) || w * h > (int64_t{1} << 28)) {
+      return MakeError(ErrorCode::kCorrupt, path,
+                       "data window {}x{} is beyond 65536 per side or 2^28 pixels", w, h);
+    }
+    image.width = static_cast<int>(w);
+    image.height = static_cast<int>(h);
     Imf::FrameBuffer fb;
     for (auto it = header.channels().begin(); it != header.channels().end(); ++it) {
       if (it.channel().xSampling != 1 || it.channel().ySampling != 1) {
