@@ -141,7 +141,7 @@ Result<cv::Mat> DecodeImageBytes(const std::vector<uchar>& bytes, const std::str
                      "cannot decode (not a JPEG/PNG/TIFF image, or damaged)");
   }
   if (img.depth() != CV_8U && img.depth() != CV_16U) {
-    return MakeError(ErrorCode::kUnsupported, path,
+    return MakeError(ErrorCode::kInvalidInput, path,
                      "unsupported sample type (depth {}): 8- or 16-bit integers are needed",
                      img.depth());
   }
@@ -150,7 +150,7 @@ Result<cv::Mat> DecodeImageBytes(const std::vector<uchar>& bytes, const std::str
   } else if (img.channels() == 4) {
     cv::cvtColor(img, img, cv::COLOR_BGRA2BGR);
   } else if (img.channels() != 3) {
-    return MakeError(ErrorCode::kUnsupported, path, "{} channels (1, 3 or 4 are supported)",
+    return MakeError(ErrorCode::kInvalidInput, path, "{} channels (1, 3 or 4 are supported)",
                      img.channels());
   }
   return img;
