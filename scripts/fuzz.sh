@@ -94,9 +94,9 @@ for n in "${names[@]}"; do
   status=0
   "$bin" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -max_len=65536 "${dict[@]}" \
     -print_final_stats=1 -artifact_prefix="$artifacts/" "$corpus" >"$work/$n.log" 2>&1 || status=$?
-  runs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$work/$n.log" | grep -o '[0-9]*$' | tail -1)
-  rate=$(grep -o 'stat::average_exec_per_sec: *[0-9]*' "$work/$n.log" | grep -o '[0-9]*$' | tail -1)
-  cov=$(grep -o 'cov: [0-9]*' "$work/$n.log" | tail -1 | grep -o '[0-9]*')
+  runs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$work/$n.log" | grep -o '[0-9]*$' | tail -1 || true)
+  rate=$(grep -o 'stat::average_exec_per_sec: *[0-9]*' "$work/$n.log" | grep -o '[0-9]*$' | tail -1 || true)
+  cov=$(grep -o 'cov: [0-9]*' "$work/$n.log" | tail -1 | grep -o '[0-9]*' || true)
   files=$(ls "$corpus" | wc -l)
   bytes=$(( $(cat "$corpus"/* 2>/dev/null | wc -c) / 1024 ))
   crashes=$(ls "$artifacts" | grep -c -E '^(crash|leak|oom|deadly)' || true)
@@ -106,7 +106,7 @@ for n in "${names[@]}"; do
   if [ "$status" -ne 0 ] || [ "$crashes" -ne 0 ] || [ "$hangs" -ne 0 ]; then
     failed=1
     echo "fuzz: $n failed (exit $status); its log:" >&2
-    grep -v '^#\|^INFO\|^Done\|^MS:\|^stat::' "$work/$n.log" | head -n 60 >&2
+    grep -v '^#\|^INFO\|^Done\|^MS:\|^stat::\|NEW_FUNC' "$work/$n.log" | head -n 60 >&2 || true
   fi
   if [ -n "$keep" ]; then
     mkdir -p "$keep/$n"
