@@ -285,7 +285,7 @@ Result<ExrImage> ReadExr(const std::string& path, int threads) {
     Imf::FrameBuffer fb;
     for (auto it = header.channels().begin(); it != header.channels().end(); ++it) {
       if (it.channel().xSampling != 1 || it.channel().ySampling != 1) {
-        return MakeError(ErrorCode::kUnsupported, path, "channel '{}' is subsampled",
+        return MakeError(ErrorCode::kInvalidInput, path, "channel '{}' is subsampled",
                          it.name());
       }
       cv::Mat m(image.height, image.width, CV_32FC1);

@@ -829,7 +829,7 @@ Result<PcaModel> PcaModel::Load(const std::string& folder) {
   try {
     if (info.at("type").get<std::string>() != "bilinear" ||
         info.at("colorspace").get<std::string>() != "mrgb") {
-      return MakeError(ErrorCode::kUnsupported, path,
+      return MakeError(ErrorCode::kInvalidInput, path,
                        "type '{}' colorspace '{}': only bilinear mrgb is read here",
                        info.at("type").get<std::string>(), info.at("colorspace").get<std::string>());
     }
