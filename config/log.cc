@@ -63,6 +63,15 @@ bool SetLogLevel(const std::string& level) {
 
 bool AddLogFile(const std::string& path) {
   Registry& r = R();
+  {
+    // A session opened again in the same process (the capture service, a resume after a
+    // capture, the fuzzers) logs to its file once, and does not open it again.
+    std::lock_guard lock(r.mu);
+    for (const auto& s : r.sinks)
+      if (auto f = std::dynamic_pointer_cast<spdlog::sinks::basic_file_sink_mt>(s);
+          f && f->filename() == path)
+        return true;
+  }
   spdlog::sink_ptr file;
   try {
     file = std::make_shared<spdlog::sinks::basic_file_sink_mt>(path, false);

@@ -20,6 +20,9 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev libltdl-dev xz-utils
   # the relighting page's browser test (rig view): a headless browser, a loopback HTTP server
   chromium libcpp-httplib-dev
+  # the sanitizer build and the fuzzers (scripts/test-sanitize.sh, scripts/fuzz.sh): clang,
+  # its sanitizer and libFuzzer runtimes, llvm-symbolizer for the reports' stack traces
+  clang-14 libclang-rt-14-dev llvm-14
 )
 
 missing=()

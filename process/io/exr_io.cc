@@ -6,9 +6,11 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdint>
 #include <cstdio>
 #include <exception>
 #include <filesystem>
+#include <fstream>
 #include <mutex>
 #include <system_error>
 
@@ -64,6 +66,61 @@ void EnsureGlobalThreads(int threads) {
     Imf::setGlobalThreadCount(threads);
     current = threads;
   }
+}
+
+
+// OpenEXR 3.1 sizes an attribute's buffer from the count in the header before it reads the
+// value: a header claiming a 2 GB string in a 2 KB file allocates and clears 2 GB (found by
+// tests/fuzz/model). Every attribute of the first header must fit in what the file holds;
+// anything else about the file is left to OpenEXR to judge. (Only the first header.)
+Status CheckHeaderSizes(const std::string& path) {
+  std::error_code ec;
+  const uintmax_t file_size = fs::file_size(path, ec);
+  if (ec) return Ok();
+  std::ifstream f(path, std::ios::binary);
+  unsigned char start[8];
+  if (!f.read(reinterpret_cast<char*>(start), 8)) return Ok();
+  if (start[0] != 0x76 || start[1] != 0x2f || start[2] != 0x31 || start[3] != 0x01) return Ok();
+  auto text = [&](std::string* out) {
+    out->clear();
+    char c;
+    while (f.get(c) && c != '\0' && out->size() < 256) *out += c;
+    return static_cast<bool>(f);
+  };
+  std::string name, type;
+  for (int n = 0; n < 100000; ++n) {
+    if (!text(&name) || name.empty() || !text(&type)) return Ok();
+    unsigned char b[4];
+    if (!f.read(reinterpret_cast<char*>(b), 4)) return Ok();
+    const int32_t size = static_cast<int32_t>(uint32_t{b[0]} | uint32_t{b[1]} << 8 |
+                                              uint32_t{b[2]} << 16 | uint32_t{b[3]} << 24);
+    // Read as OpenEXR reads it, so that the walk stays in step with it: a channel list up to
+    // its empty name (whatever its size says), fixed-size types by their size.
+    if (type == "chlist") {
+      std::string channel;
+      while (text(&channel) && !channel.empty()) f.seekg(16, std::ios::cur);
+      if (!f) return Ok();
+      continue;
+    }
+    static const std::map<std::string, int> kFixed = {
+        {"box2i", 16}, {"box2f", 16}, {"v2i", 8}, {"v2f", 8}, {"v2d", 16}, {"v3i", 12},
+        {"v3f", 12}, {"v3d", 24}, {"int", 4}, {"float", 4}, {"double", 8}, {"compression", 1},
+        {"lineOrder", 1}, {"envmap", 1}, {"deepImageState", 1}, {"m33f", 36}, {"m33d", 72},
+        {"m44f", 64}, {"m44d", 128}, {"chromaticities", 32}, {"keycode", 28}, {"timecode", 8},
+        {"rational", 8}, {"tiledesc", 9}};
+    if (auto it = kFixed.find(type); it != kFixed.end()) {
+      f.seekg(it->second, std::ios::cur);
+      continue;
+    }
+    const std::streamoff here = f.tellg();
+    if (size < 0 || here < 0 || static_cast<uintmax_t>(size) > file_size - static_cast<uintmax_t>(here)) {
+      return MakeError(ErrorCode::kCorrupt, path,
+                       "header attribute '{}' ({}) claims {} bytes; the file holds {}",
+                       name.substr(0, 64), type.substr(0, 32), size, file_size);
+    }
+    f.seekg(size, std::ios::cur);
+  }
+  return Ok();
 }
 
 }  // namespace
@@ -191,6 +248,7 @@ Status WriteExr(const std::string& path, const ExrImage& image, ExrPixelType typ
 Result<std::map<std::string, std::string>> ReadExrAttributes(const std::string& path) {
   std::error_code ec;
   if (!fs::exists(path, ec)) return MakeError(ErrorCode::kNotFound, path, "no such file");
+  RIG_TRY(CheckHeaderSizes(path));
   try {
     Imf::InputFile in(path.c_str(), 1);
     std::map<std::string, std::string> out;
@@ -211,6 +269,7 @@ Result<ExrImage> ReadExr(const std::string& path, int threads) {
   if (!fs::exists(path, ec)) {
     return MakeError(ErrorCode::kNotFound, path, "no such file");
   }
+  RIG_TRY(CheckHeaderSizes(path));
   try {
     threads = std::max(threads, 1);
     EnsureGlobalThreads(threads);
@@ -237,7 +296,7 @@ Result<ExrImage> ReadExr(const std::string& path, int threads) {
     Imf::FrameBuffer fb;
     for (auto it = header.channels().begin(); it != header.channels().end(); ++it) {
       if (it.channel().xSampling != 1 || it.channel().ySampling != 1) {
-        return MakeError(ErrorCode::kUnsupported, path, "channel '{}' is subsampled",
+        return MakeError(ErrorCode::kInvalidInput, path, "channel '{}' is subsampled",
                          it.name());
       }
       cv::Mat m(image.height, image.width, CV_32FC1);

@@ -201,6 +201,17 @@ Result<std::vector<uint8_t>> EncodeJpeg(const cv::Mat& image, JpegColor color, i
   return std::vector<uint8_t>(e.buffer, e.buffer + e.size);
 }
 
+// Bounded before allocating: 2^28 pixels (a 24 MP frame is 2^24.5; libjpeg allows 65500²).
+static Status CheckJpegSize(const jpeg_decompress_struct& cinfo, const std::string& context) {
+  const uint64_t pixels = uint64_t{cinfo.output_width} * cinfo.output_height;
+  if (pixels == 0 || pixels > (uint64_t{1} << 28)) {
+    return MakeError(ErrorCode::kInvalidInput, context,
+                     "JPEG of {}x{} pixels: beyond the 2^28 pixels read here", cinfo.output_width,
+                     cinfo.output_height);
+  }
+  return Ok();
+}
+
 Result<cv::Mat> DecodeJpeg(const std::vector<uint8_t>& bytes, const std::string& context) {
   MemoryDecoder d;
   d.cinfo.err = jpeg_std_error(&d.err.pub);
@@ -216,9 +227,12 @@ Result<cv::Mat> DecodeJpeg(const std::vector<uint8_t>& bytes, const std::string&
   jpeg_read_header(&d.cinfo, TRUE);
   d.cinfo.out_color_space = d.cinfo.num_components == 1 ? JCS_GRAYSCALE : JCS_RGB;
   jpeg_start_decompress(&d.cinfo);
+  RIG_TRY(CheckJpegSize(d.cinfo, context));
   out.create(static_cast<int>(d.cinfo.output_height), static_cast<int>(d.cinfo.output_width),
              CV_MAKETYPE(CV_8U, d.cinfo.output_components));
-  for (int y = 0; y < out.rows; ++y) {
+  // Stops at the end of the data: a header claiming 65500x65500 in a few bytes would otherwise
+  // be decoded into grey row by row (found by tests/fuzz/jpeg).
+  for (int y = 0; y < out.rows && !d.err.truncated; ++y) {
     JSAMPROW row = out.ptr<uint8_t>(y);
     jpeg_read_scanlines(&d.cinfo, &row, 1);
   }
@@ -261,6 +275,7 @@ Result<std::unique_ptr<JpegReader>> JpegReader::Open(const std::string& path) {
   s.cinfo.out_color_space = s.cinfo.num_components == 1 ? JCS_GRAYSCALE : JCS_RGB;
   jpeg_start_decompress(&s.cinfo);
   if (s.err.truncated) return MakeError(ErrorCode::kInvalidInput, path, "truncated JPEG");
+  RIG_TRY(CheckJpegSize(s.cinfo, path));
   return r;
 }
 
@@ -279,7 +294,7 @@ Status JpegReader::Read(int count, cv::Mat* rows) {
   if (setjmp(s.err.jump)) {
     return MakeError(ErrorCode::kInvalidInput, s.path, "corrupt JPEG: {}", s.err.message);
   }
-  for (int y = 0; y < count; ++y) {
+  for (int y = 0; y < count && !s.err.truncated; ++y) {
     JSAMPROW row = rows->ptr<uint8_t>(y);
     jpeg_read_scanlines(&s.cinfo, &row, 1);
   }

@@ -1,0 +1,20 @@
+// Fuzzes the session journal's reader (journal.jsonl: Journal::Read, and Journal::Open's cut of
+// a torn tail), through journal_adapter.h. What resume then does with the records is fuzzed by
+// journal_resume_fuzz.cc.
+#include <cstdint>
+
+#include "tests/fuzz/fuzz_support.h"
+#include "tests/fuzz/journal_adapter.h"
+
+extern "C" int LLVMFuzzerInitialize(int*, char***) {
+  rig::fuzz::QuietLogs();
+  return 0;
+}
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  const auto path = rig::fuzz::Scratch() / "journal.jsonl";
+  rig::fuzz::WriteFile(path, rig::fuzz::AsText(data, size));
+  rig::Status st = rig::fuzz::ReadJournalFile(path);
+  if (!st.ok()) rig::fuzz::CheckRefusal(st.error());
+  return 0;
+}
