@@ -8,7 +8,6 @@
 #   scripts/fuzz.sh --minutes 30        30 min per harness
 #   scripts/fuzz.sh --seconds 60 lp exr only these harnesses
 #   --keep DIR                          keep the grown corpora and any crash inputs in DIR
-#   --all                               also the harnesses listed as known to crash
 #
 # Exit 1 if any harness crashed, hung, leaked or failed a regression input.
 set -euo pipefail
@@ -17,23 +16,17 @@ root=$(pwd)
 build=${RIG_ASAN_BUILD:-build-asan}
 seconds=8
 keep=""
-all=0
 only=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --seconds) seconds=$2; shift 2 ;;
     --minutes) seconds=$(( $2 * 60 )); shift 2 ;;
     --keep) keep=$2; shift 2 ;;
-    --all) all=1; shift ;;
     -h|--help) sed -n 2,14p "$0"; exit 0 ;;
     -*) echo "fuzz.sh: unknown option $1" >&2; exit 2 ;;
     *) only+=("$1"); shift ;;
   esac
 done
-
-# Harnesses whose reader is known to crash on today's main and is being rewritten elsewhere
-# (docs/fuzzing.md, "Known crashes"): run only with --all or by name.
-known_crashing=(journal_resume)
 
 if [ ! -d "$build/tests/fuzz" ]; then
   bash scripts/setup.sh
@@ -58,12 +51,7 @@ if [ ${#only[@]} -gt 0 ]; then
   names=("${only[@]}")
 else
   for src in tests/fuzz/*_fuzz.cc; do
-    n=$(basename "$src" _fuzz.cc)
-    if [ $all -eq 0 ] && [[ " ${known_crashing[*]} " == *" $n "* ]]; then
-      echo "fuzz: $n skipped (known to crash on today's reader; --all runs it)"
-      continue
-    fi
-    names+=("$n")
+    names+=("$(basename "$src" _fuzz.cc)")
   done
 fi
 

@@ -167,6 +167,7 @@ std::map<std::string, std::string> ModelHeaderAttributes(const Model& m) {
   a["lamp_directions"] = dirs;
   a["sample_spacing_deg"] = Num(i.sample_spacing_deg);
   a["flagged_pixels"] = std::to_string(i.flagged_pixels);
+  a["source_encoding"] = i.source_encoding == ValueEncoding::kSrgb ? "srgb" : "linear";
   a["channel_layout"] =
       "cKK.R/G/B: coefficient of basis term KK (sh/hsh: k = l*l+l+m; ptm: 1, lu, lv, lu^2, "
       "lu*lv, lv^2, ...); rho = inverse_fit_space(sum_k b_k(dir) cKK); radiance = rho * "
@@ -250,6 +251,17 @@ Result<Model> ModelFromHeader(const std::map<std::string, std::string>& a, int w
     }
   }
   i.flagged_pixels = static_cast<size_t>(flagged);
+  // Absent in models written before it was recorded: those are linear (radiance maps) or were
+  // rendered as such.
+  if (auto it = a.find("source_encoding"); it != a.end()) {
+    if (it->second == "srgb") {
+      i.source_encoding = ValueEncoding::kSrgb;
+    } else if (it->second != "linear") {
+      return MakeError(ErrorCode::kInvalidInput, context,
+                       "model header source_encoding '{}' is neither 'srgb' nor 'linear'",
+                       it->second.substr(0, 40));
+    }
+  }
   if (auto it = a.find("lamp_directions"); it != a.end()) {
     std::istringstream ds(it->second);
     std::string item;

@@ -18,6 +18,10 @@
 
 namespace rig {
 
+// What a model's values came from: ρ from radiance maps (linear), or the display-referred code
+// values of 8-bit photographs (sRGB), which renders by default reproduce as the photos did.
+enum class ValueEncoding { kLinear, kSrgb };
+
 struct ModelInfo {
   FitMethod method = FitMethod::kRls;
   FitTransform transform;
@@ -30,6 +34,8 @@ struct ModelInfo {
   std::vector<Vec3> lamp_directions;  // the sampled lamps, object frame
   double sample_spacing_deg = 0;      // largest nearest-neighbour angle between lamps
   size_t flagged_pixels = 0;
+  // kSrgb: fitted to 8-bit photographs (an .lp set), so a picture is by default their encoding.
+  ValueEncoding source_encoding = ValueEncoding::kLinear;
 };
 
 // Where a lamp direction lies relative to the sampled lamps.

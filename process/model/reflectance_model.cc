@@ -32,7 +32,7 @@ class HarmonicModel final : public ReflectanceModel {
   }
   int width() const override { return m_.width(); }
   int height() const override { return m_.height(); }
-  ValueEncoding encoding() const override { return ValueEncoding::kLinear; }
+  ValueEncoding encoding() const override { return m_.info().source_encoding; }
   const LightFrameConfig& light_frame() const override { return m_.info().light_frame; }
   std::array<double, 3> lamp_radiance_rgb() const override { return m_.info().lamp_radiance_rgb; }
   cv::Mat EvaluateRho(const Vec3& d) const override { return m_.EvaluateRho(d); }

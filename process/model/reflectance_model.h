@@ -18,10 +18,6 @@
 
 namespace rig {
 
-// What a model's values are: ρ from radiance maps (linear), or the display-referred code
-// values of 8-bit photographs (sRGB), which renders by default reproduce as the photos did.
-enum class ValueEncoding { kLinear, kSrgb };
-
 class ReflectanceModel {
  public:
   virtual ~ReflectanceModel() = default;

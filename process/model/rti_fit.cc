@@ -90,6 +90,8 @@ Result<std::unique_ptr<ReflectanceModel>> FitHarmonic(const RtiCapture& cap,
   }
   input.weights = UniformHemisphereWeights(input.directions.size());
   RIG_ASSIGN_OR_RETURN(FitOutput fitted, FitModel(input, o));
+  // Photographs' codes (sRGB unless told linear): pictures reproduce them by default.
+  fitted.model.info().source_encoding = req.linear ? ValueEncoding::kLinear : ValueEncoding::kSrgb;
   *seconds = fitted.fit_time_s;
   const Model& m = fitted.model;
   *summary = fmt::format("{} order {} ({} terms per channel), {} in {} space, {} pixels flagged",

@@ -1,7 +1,7 @@
-// The journal entry points the journal harnesses call, in one place: today's reader
-// (Journal::Read / Journal::Open in capture/session/session_store.cc) and today's resume
-// (Session::OpenExisting, then the capture daemon's verification of what the journal says is
-// stored). When the guarded journal/session readers land, repoint these two functions.
+// The journal entry points the journal harnesses call, in one place: the reader as a session
+// uses it (Journal::Read / Journal::Open in capture/session/session_store.cc, every record
+// through the guarded ParseJournal of journal_reader.h) and resume (Session::OpenExisting,
+// then the capture daemon's verification of what the journal says is stored).
 #pragma once
 
 #include <cmath>

@@ -3,10 +3,10 @@
 // the input is journal.jsonl of a small session (2 poses × 2 exposures) whose frames folder
 // holds the four files the seeds' records name (bytes "fuzz frame <pose> <i>").
 //
-// Machine safety: today's resume follows a record's "file" out of the session (an absolute
-// path or "..": issue 20 item 2) and moves what it finds there aside. Inputs naming such a file
-// are skipped here, so that fuzzing never touches anything outside the scratch folder; the
-// containment itself is the guarded reader's test.
+// Machine safety: the guarded reader refuses a record whose "file" leaves the session (an
+// absolute path, ".."), and the tests of tests/capture hold it to that. Should it ever fail,
+// resume would move what it finds there aside, so inputs naming such a file are still skipped
+// here: fuzzing never touches anything outside the scratch folder.
 #include <cstdint>
 
 #include <nlohmann/json.hpp>

@@ -1,5 +1,5 @@
 // Writes the binary seeds of tests/fuzz/corpus/ with the project's own writers, small (8x6
-// pixels): `fuzz_make_seeds DIR` fills DIR/{jpeg,image,exr,model,ptm,rti,relight}/. The text
+// pixels): `fuzz_make_seeds DIR` fills DIR/{jpeg,image,raw,exr,model,ptm,rti,relight}/. The text
 // seeds (config, list, lp, journal, journal_resume) are written by hand; see docs/fuzzing.md.
 #include <cmath>
 #include <cstdio>
@@ -15,6 +15,7 @@
 #include "process/io/jpeg_io.h"
 #include "process/model/light_direction.h"
 #include "process/model/rti_fit.h"
+#include "sim/dng_writer.h"
 #include "tests/fuzz/fuzz_support.h"
 
 namespace fs = std::filesystem;
@@ -90,7 +91,7 @@ int main(int argc, char** argv) {
   }
   rig::fuzz::QuietLogs();
   const fs::path out = argv[1];
-  for (const char* d : {"jpeg", "image", "exr", "model", "ptm", "rti", "relight"})
+  for (const char* d : {"jpeg", "image", "raw", "exr", "model", "ptm", "rti", "relight"})
     fs::create_directories(out / d);
 
   cv::Mat rgb(6, 8, CV_8UC3), grey(6, 8, CV_8UC1), deep(6, 8, CV_16UC3);
@@ -115,6 +116,18 @@ int main(int argc, char** argv) {
   encode(".png", deep, "frame16.png");
   encode(".tif", deep, "frame16.tif");
   encode(".png", grey, "grey.png");
+  // RAW: DNG as the simulated camera writes it, a Bayer mosaic and LinearRaw, with levels.
+  rig::DngOptions dng;
+  dng.black = 512;
+  dng.white = 15000;
+  dng.exposure_s = 0.01;
+  dng.as_shot_neutral[0] = 0.5;
+  dng.as_shot_neutral[2] = 0.7;
+  cv::Mat sensor(6, 8, CV_16UC3);
+  cv::randu(sensor, 512, 16000);
+  WriteFile(out / "raw/bayer.dng", bytes(Take(rig::EncodeDng(sensor, dng), "dng")));
+  dng.mosaic = false;
+  WriteFile(out / "raw/linear.dng", bytes(Take(rig::EncodeDng(sensor, dng), "dng")));
   // EXR: a radiance map in float and half, and a multi-channel file with attributes.
   cv::Mat radiance(6, 8, CV_32FC3);
   cv::randu(radiance, 0.0f, 8.0f);
