@@ -25,7 +25,7 @@ endif()
 if(NOT RIG_SANITIZE STREQUAL "")
   # Added after the build type's flags, so -O1 replaces Release's -O3 (NDEBUG stays: the
   # instrumented code is the code that ships). Line tables only (with clang): a report's stack
-  # names file and line; full debug information would double the build's time in CI.
+  # names file and line; full debug information only costs CI build time and disk.
   add_compile_options(-fsanitize=${RIG_SANITIZE} -fno-omit-frame-pointer -O1)
   if(CMAKE_CXX_COMPILER_ID MATCHES "Clang")
     add_compile_options(-gline-tables-only)
