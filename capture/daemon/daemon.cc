@@ -318,10 +318,17 @@ void CaptureDaemon::StartProcessing(RunState& run) {
 
 // ---- Home, visit the poses --------------------------------------------------------------
 
-// Homes the axes when anything is left to capture (on start if configured, always on resume).
+// Homes the axes when anything is left to capture and motor.home_on_start says so, on start
+// and on resume alike: a machine without limit switches cannot home, and must still resume.
 Status CaptureDaemon::Home(RunState& run) {
   const MotorConfig& mc = session_.config().motor;
-  if (run.already >= run.sum.frames || !(mc.home_on_start || run.plan_record)) return Ok();
+  if (run.already >= run.sum.frames) return Ok();
+  if (!mc.home_on_start) {
+    if (run.plan_record)
+      Log("session")->info("resume without homing (motor.home_on_start = false): the controller's "
+                           "position is trusted");
+    return Ok();
+  }
   if (StopRequested()) return Interrupted(run);
   auto t0 = Clock::now();
   run.current_pose = "home";
