@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <optional>
@@ -617,6 +618,15 @@ ConfigResult ParseConfig(const std::string& text, const std::string& source_name
 }
 
 ConfigResult LoadConfig(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) {
+    // An ifstream opens a folder and reads nothing: every table would be reported missing.
+    ConfigResult r;
+    r.diagnostics.push_back({path, 0, 0, "(file)",
+                             "is a directory, not a configuration file (give a .toml file, e.g. "
+                             "config/sim.toml)"});
+    return r;
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     ConfigResult r;

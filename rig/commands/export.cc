@@ -25,6 +25,7 @@
 #include "process/export/relight_files.h"
 #include "process/model/model.h"
 #include "rig/commands/command.h"
+#include "config/console.h"
 
 namespace rig {
 namespace {
@@ -105,7 +106,9 @@ int ExportSessionLp(const ExportArgs& a) {
   std::sort(poses.begin(), poses.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
   std::vector<cv::Mat> maps;
   std::vector<float> sample;
+  ProgressTask reading("reading radiance maps", static_cast<int64_t>(poses.size()));
   for (const auto& [path, pose] : poses) {
+    reading.Advance(1, pose.Name());
     auto m = ReadRgbExr(path);
     if (!m.ok()) return ReportError("export", m.error());
     if (!maps.empty() && m->size() != maps[0].size()) {

@@ -3,6 +3,7 @@
 
 #include <cstdio>
 
+#include "config/console.h"
 #include "config/log.h"
 #include "rig/backends.h"
 #include "rig/commands/command.h"
@@ -21,6 +22,7 @@ int RunSession(Session& session, bool resuming, bool process, bool progress) {
     Status st = devices->write_truth(layout.truth(), PlanGrid(config.grid));
     if (!st.ok()) return ReportError("capture", st.error().Within("truth"));
   }
+  EnableProgress(progress);
   CaptureOptions options;
   options.settle_scale = devices->settle_scale;
   options.process = process;
@@ -148,10 +150,11 @@ Status FitSessionModel(const Session& session) {
   if (!st.ok()) log->warn("{}", st.error().ToString());
   log->info("model written file={} order={} terms={} loo_rmse={:.5g} time_s={:.2f}", out.string(),
             fit.selection.order, fit.selection.projector.basis.size(), fit.loo_rmse, fit.time_s);
-  std::printf("model: %s (order %d, %d terms, %.1f B/px; leave-one-out RMS error %.4g %s; "
-              "%.2f s)\n",
-              out.string().c_str(), fit.selection.order, fit.selection.projector.basis.size(), bpp,
-              fit.loo_rmse, FitSpaceUnit(config.process.fit_space).c_str(), fit.time_s);
+  ConsoleLine(stdout, fmt::format("model: {} (order {}, {} terms, {:.1f} B/px; leave-one-out RMS "
+                                  "error {:.4g} {}; {:.2f} s)",
+                                  out.string(), fit.selection.order,
+                                  fit.selection.projector.basis.size(), bpp, fit.loo_rmse,
+                                  FitSpaceUnit(config.process.fit_space), fit.time_s));
   return Ok();
 }
 
