@@ -46,5 +46,11 @@ int RunView(int argc, char** argv);     // rig/commands/view.cc
 int RunHdr(int argc, char** argv);
 int RunRatioCheck(int argc, char** argv);
 int RunEvaluate(int argc, char** argv);
+// Bring-up on a real rig (rig/commands/{devices,jog,home,lamp,shot}.cc).
+int RunDevices(int argc, char** argv);
+int RunJog(int argc, char** argv);
+int RunHome(int argc, char** argv);
+int RunLamp(int argc, char** argv);
+int RunShot(int argc, char** argv);
 
 }  // namespace rig
