@@ -52,5 +52,7 @@ int RunJog(int argc, char** argv);
 int RunHome(int argc, char** argv);
 int RunLamp(int argc, char** argv);
 int RunShot(int argc, char** argv);
+int RunDaemon(int argc, char** argv);  // rig/commands/daemon.cc
+int RunStatus(int argc, char** argv);  // rig/commands/status.cc
 
 }  // namespace rig

@@ -26,6 +26,8 @@ const std::vector<Command>& Commands() {
       {"home", "run the arm's homing cycle, or clear a GRBL alarm lock (bring-up)", RunHome},
       {"lamp", "switch the lamp on, off, or blink it (bring-up)", RunLamp},
       {"shot", "one frame at one exposure: histogram, clipping, a suggested bracket (bring-up)", RunShot},
+      {"daemon", "the capture service: job queue, HTTP+JSON API, live status page", RunDaemon},
+      {"status", "what a running 'rig daemon' is doing", RunStatus},
   };
   return kCommands;
 }
