@@ -85,6 +85,7 @@ nlohmann::json JobInfo::ToJson() const {
   j["exit_code"] = exit_code < 0 ? nlohmann::json(nullptr) : nlohmann::json(exit_code);
   if (!error.empty()) j["error"] = error;
   if (!summary.empty()) j["summary"] = summary;
+  if (!timing.is_null()) j["timing"] = timing;
   return j;
 }
 
@@ -394,6 +395,14 @@ void CaptureService::RunCapture(JobInfo& job, Session& session) {
     phase_ = "processing";
   }
   job.summary = summary.ToString();
+  job.timing = {{"poses", summary.poses},         {"frames", summary.frames},
+                {"frames_captured", summary.frames_captured},
+                {"frames_verified", summary.frames_verified},
+                {"retries", summary.retries},     {"faults", summary.faults},
+                {"total_s", summary.total_s},     {"motion_s", summary.motion_s},
+                {"settle_s", summary.settle_s},   {"lamp_s", summary.lamp_s},
+                {"camera_s", summary.camera_s},   {"exposure_s", summary.exposure_s},
+                {"storage_s", summary.storage_s}, {"queue_wait_s", summary.queue_wait_s}};
   if (!st.ok()) {
     const Error& e = st.error();
     job.error = e.ToString();

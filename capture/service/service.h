@@ -73,6 +73,7 @@ struct JobInfo {
   std::string state = "queued";
   std::string error;      // why it failed or faulted
   std::string summary;    // the capture summary, when it ran
+  nlohmann::json timing;  // the capture summary's figures (seconds, counts), when it ran
   int exit_code = -1;     // what `rig capture`/`rig resume` would have returned
   double queued_s = 0, started_s = -1, finished_s = -1;  // seconds since the service started
   nlohmann::json ToJson() const;
