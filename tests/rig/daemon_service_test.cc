@@ -247,6 +247,17 @@ TEST(DaemonService, ProcessJobMergesAndFitsAndPreviewsServeJpeg) {
     EXPECT_EQ(static_cast<unsigned char>(res->body[0]), 0xFF);  // JPEG SOI
     EXPECT_EQ(static_cast<unsigned char>(res->body[1]), 0xD8);
   }
+  // The journal as Server-Sent Events: every record from `since` on, numbered, then status.
+  std::string events;
+  auto sse = c.Get("/api/events?since=1", [&](const char* data, size_t n) {
+    events.append(data, n);
+    return events.find("event: status") == std::string::npos;  // stop reading once it came
+  });
+  const size_t records = Records(a).size();
+  EXPECT_NE(events.find("id: 1\nevent: journal\ndata: {"), std::string::npos) << events.substr(0, 300);
+  EXPECT_NE(events.find("id: " + std::to_string(records - 1) + "\nevent: journal"), std::string::npos);
+  EXPECT_EQ(events.find("id: 0\n"), std::string::npos);
+  EXPECT_NE(events.find("event: status\ndata: {\"eta_s\""), std::string::npos) << events.substr(events.size() - 300);
   // Bad requests name what is wrong.
   auto bad = d.client->Post("/api/jobs", {{"kind", "capture"}, {"session", "relative/S"}, {"config", cfg}});
   ASSERT_FALSE(bad.ok());
