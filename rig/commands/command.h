@@ -54,5 +54,7 @@ int RunLamp(int argc, char** argv);
 int RunShot(int argc, char** argv);
 int RunDaemon(int argc, char** argv);  // rig/commands/daemon.cc
 int RunStatus(int argc, char** argv);  // rig/commands/status.cc
+int RunCalibrateLights(int argc, char** argv);  // rig/commands/calibrate_lights.cc
+int RunNormals(int argc, char** argv);          // rig/commands/normals.cc
 
 }  // namespace rig

@@ -28,6 +28,8 @@ const std::vector<Command>& Commands() {
       {"shot", "one frame at one exposure: histogram, clipping, a suggested bracket (bring-up)", RunShot},
       {"daemon", "the capture service: job queue, HTTP+JSON API, live status page", RunDaemon},
       {"status", "what a running 'rig daemon' is doing", RunStatus},
+      {"calibrate-lights", "light directions from chrome spheres: an .lp, a session's [light_frame]", RunCalibrateLights},
+      {"normals", "surface normals and albedo by photometric stereo (EXR + PNG)", RunNormals},
   };
   return kCommands;
 }
