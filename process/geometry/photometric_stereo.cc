@@ -195,10 +195,35 @@ Vec3 EstimateLight(const cv::Mat& linear_bgr, const cv::Mat& clipped, const PsRe
       if (v < 0.02 * gmax) continue;
       smp.push_back({v, rho * nv, 0});
     }
-  Eigen::Vector3d g = l0;
+  // A flat object's normals all point one way: the light's components across them are not
+  // determined by the data. Damped least squares keeps those at the start direction (scaled
+  // by the intensity along it) and moves only what the normals' spread determines.
   std::vector<double> w(smp.size(), 1.0);
-  if (!Solve(smp, w, &g)) return start;
-  Irls(smp, 4, &g, &w);
+  Eigen::Vector3d g = l0;
+  for (int it = 0; it < 5; ++it) {
+    Eigen::Matrix3d a = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    int n = 0;
+    for (size_t k = 0; k < smp.size(); ++k) {
+      if (w[k] <= 0) continue;
+      a += w[k] * smp[k].s * smp[k].s.transpose();
+      b += w[k] * smp[k].i * smp[k].s;
+      ++n;
+    }
+    if (n < 10) return start;
+    const double c = l0.dot(b) / std::max(l0.dot(a * l0), 1e-30);
+    const double mu = 0.05 * a.trace() / 3;
+    g = (a + mu * Eigen::Matrix3d::Identity()).ldlt().solve(b + mu * c * l0);
+    if (!g.allFinite() || g.norm() <= 0) return start;
+    // Tukey weights on the residuals for the next pass.
+    std::vector<double> absr;
+    for (const auto& sm : smp) absr.push_back(std::abs(sm.i - g.dot(sm.s)));
+    const double sigma = std::max(1.4826 * MedianOf(absr), 1e-12);
+    for (size_t k = 0; k < smp.size(); ++k) {
+      const double u = (smp[k].i - g.dot(smp[k].s)) / (4.685 * sigma);
+      w[k] = std::abs(u) < 1 ? (1 - u * u) * (1 - u * u) : 0;
+    }
+  }
   const Eigen::Vector3d d = g.normalized();
   return {d(0), d(1), d(2)};
 }

@@ -160,7 +160,7 @@ cv::Mat LogImage(const cv::Mat& grey) {
 }  // namespace
 
 namespace {
-SphereCircle RefineOnce(const cv::Mat& lg, const SphereCircle& rough) {
+SphereCircle RefineOnce(const cv::Mat& lg, const cv::Mat& lin, const SphereCircle& rough) {
   std::vector<cv::Point2d> pts;
   std::vector<float> strengths;
   const int rays = 360;
@@ -182,6 +182,27 @@ SphereCircle RefineOnce(const cv::Mat& lg, const SphereCircle& rough) {
     const double den = d[bi - 1] - 2 * d[bi] + d[bi + 1];
     if (std::abs(den) > 1e-12) off = std::clamp(0.5 * (d[bi - 1] - d[bi + 1]) / den, -0.5, 0.5);
     best_r = r0 + (bi + off) * step;
+    // The edge's position: where the linear profile crosses halfway between the levels
+    // inside and outside (the steepest point of the log profile is only the coarse guess).
+    {
+      auto at = [&](double r) { return Sample(lin, rough.cx + r * ca, rough.cy + r * sa); };
+      double in = 0, outv = 0;
+      for (double d = 2; d <= 4; d += 0.5) in += at(best_r - d), outv += at(best_r + d);
+      in /= 5;
+      outv /= 5;
+      const double mid = 0.5 * (in + outv);
+      double prev = at(best_r - 2), found = -1;
+      for (double r = best_r - 2 + 0.125; r <= best_r + 2; r += 0.125) {
+        const double cur = at(r);
+        if ((prev - mid) * (cur - mid) <= 0 && prev != cur) {
+          const double f = (mid - prev) / (cur - prev);
+          const double cand = r - 0.125 + f * 0.125;
+          if (found < 0 || std::abs(cand - best_r) < std::abs(found - best_r)) found = cand;
+        }
+        prev = cur;
+      }
+      if (found > 0) best_r = found;
+    }
     pts.push_back({rough.cx + best_r * ca, rough.cy + best_r * sa});
     strengths.push_back(static_cast<float>(best));
   }
@@ -200,11 +221,15 @@ SphereCircle RefineOnce(const cv::Mat& lg, const SphereCircle& rough) {
 }  // namespace
 
 SphereCircle RefineCircle(const cv::Mat& median_grey, const SphereCircle& rough) {
-  // A few passes: the rays of each start from the centre found by the last.
+  // A few passes: the rays of each start from the centre found by the last. The edge is
+  // found in the linear image, normalised: the steepest point of a blurred step lies at its
+  // middle there (in a log image it moves towards the dark side, by the contrast's side).
   const cv::Mat lg = LogImage(median_grey);
+  cv::Mat lin;
+  cv::max(median_grey, 0.0, lin);
   SphereCircle c = rough;
   for (int pass = 0; pass < 4; ++pass) {
-    const SphereCircle next = RefineOnce(lg, c);
+    const SphereCircle next = RefineOnce(lg, lin, c);
     const double moved = std::hypot(next.cx - c.cx, next.cy - c.cy) + std::abs(next.r - c.r);
     c = next;
     if (moved < 0.01) break;

@@ -36,7 +36,7 @@ int RunCalibrateLights(int argc, char** argv) {
   std::vector<std::string> sphere_args;
   double focal_mm = 0, sensor_width_mm = 0, max_disagreement = 3.0, min_contrast = 8,
          max_blob = 0.03;
-  bool force = false, from_images = false;
+  bool force = false, from_images = false, as_given = false;
   std::string loo_report;
   int loo_every = 6, rounds = 3, threads = 2;
   app.add_option("source", source, "a session folder");
@@ -57,6 +57,8 @@ int RunCalibrateLights(int argc, char** argv) {
       ->check(CLI::Range(1e-4, 1.0));
   app.add_option("--out", out, "the .lp written (a session: default SESSION/calib/lights.lp)");
   app.add_flag("--force", force, "replace an existing output file");
+  app.add_flag("--as-given", as_given, "use the --sphere circles exactly as given (default: refined "
+               "to the sphere's edge)");
   app.add_flag("--from-images", from_images, "no sphere: re-estimate the .lp's directions from the "
                "images themselves (alternating robust photometric stereo and per-light least "
                "squares, from the given directions)");
@@ -171,7 +173,8 @@ int RunCalibrateLights(int argc, char** argv) {
     if (!found.ok()) return ReportError("calibrate-lights", found.error());
     spheres = *found;
   } else {
-    for (auto& s : spheres) s = RefineCircle(median, s);
+    if (!as_given)
+      for (auto& s : spheres) s = RefineCircle(median, s);
   }
   std::printf("camera model: %s\n", camera.Describe().c_str());
   for (size_t i = 0; i < spheres.size(); ++i)
