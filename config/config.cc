@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <optional>
@@ -434,6 +435,8 @@ void VisitConfig(Config& c, V& v) {
     v.Field("v_offset_deg", f.v_offset_deg, kAngle);
     v.Field("h_sign", f.h_sign, Range{-1, 1});
     v.Field("v_sign", f.v_sign, Range{-1, 1});
+    v.Field("lamp_distance_mm", f.lamp_distance_mm, Range{0, 1e7});
+    v.Field("field_height_mm", f.field_height_mm, Range{0, 1e7});
   });
   section("process", false, [&] {
     auto& p = c.process;
@@ -465,6 +468,10 @@ void VisitConfig(Config& c, V& v) {
     v.Field("width", s.width, Range{8, 20000});
     v.Field("height", s.height, Range{8, 20000});
     v.Field("latency_scale", s.latency_scale, Range{0, 100});
+    v.Field("chrome_spheres", s.chrome_spheres, Range{0, 2});
+    v.Field("matte_sphere", s.matte_sphere);
+    v.Field("lamp_distance_mm", s.lamp_distance_mm, Range{0, 1e7});
+    v.Field("field_height_mm", s.field_height_mm, Range{1e-3, 1e7});
     section("camera", false, [&] {
       auto& k = s.camera;
       v.Field("gain", k.gain, kPositive);
@@ -570,6 +577,9 @@ void CheckConsistency(const Config& c, Reader& r) {
     r.ReportAt("process.order", fmt::format("order {} exceeds max_order {}", p.order, p.max_order));
   if (p.display_max_cd_m2 <= p.display_min_cd_m2)
     r.ReportAt("process.display_max_cd_m2", "must exceed display_min_cd_m2");
+  if (c.light_frame.lamp_distance_mm > 0 && c.light_frame.field_height_mm <= 0)
+    r.ReportAt("light_frame.field_height_mm",
+               "a near lamp (lamp_distance_mm > 0) needs the field's height at the object");
   if (c.sim.camera.shutter_max_s <= c.sim.camera.shutter_min_s)
     r.ReportAt("sim.camera.shutter_max_s", "must exceed shutter_min_s");
 }
@@ -617,6 +627,15 @@ ConfigResult ParseConfig(const std::string& text, const std::string& source_name
 }
 
 ConfigResult LoadConfig(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) {
+    // An ifstream opens a folder and reads nothing: every table would be reported missing.
+    ConfigResult r;
+    r.diagnostics.push_back({path, 0, 0, "(file)",
+                             "is a directory, not a configuration file (give a .toml file, e.g. "
+                             "config/sim.toml)"});
+    return r;
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     ConfigResult r;

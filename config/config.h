@@ -96,6 +96,11 @@ struct LampConfig {
 struct LightFrameConfig {
   double h_offset_deg = 0, v_offset_deg = 0;
   int h_sign = 1, v_sign = 1;
+  // Near lamp (docs/lights.md): the lamp's distance from the arm's centre of rotation (on the
+  // object, at the image centre), 0: far enough to be a direction; and the height of the
+  // camera's field at the object (both mm), which places every pixel relative to the lamp.
+  double lamp_distance_mm = 0;
+  double field_height_mm = 0;
 };
 
 struct ProcessConfig {
@@ -159,6 +164,15 @@ struct SimConfig {
   std::string scene = "full";           // "matte" | "gloss" | "sharp" | "full"
   int width = 320, height = 240;
   double latency_scale = 0.0;           // 0: no waiting; 1: real device timing
+  // Calibration targets (docs/lights.md), off by default: chrome spheres (0, 1 or 2; top left,
+  // top right) and a matte sphere (bottom right) in front of the plane.
+  int chrome_spheres = 0;
+  bool matte_sphere = false;
+  // The simulated lamp's true distance from the centre of rotation (mm, 0: a far lamp, as
+  // before) and the scene's height in mm (its 2 units); the rig's knowledge of them lives in
+  // [light_frame] (the simulated camera takes the arm offsets from there).
+  double lamp_distance_mm = 0;
+  double field_height_mm = 100;
   SimCameraConfig camera;
   SimMotorConfig motor;
   SimLampConfig lamp;

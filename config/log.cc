@@ -8,8 +8,31 @@
 #include <spdlog/sinks/basic_file_sink.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 
+#include "config/console.h"
+
 namespace rig {
 namespace {
+
+// The console sink: each line is written with the progress bar erased and drawn again after
+// it (config/console.h), so a log line never lands on the end of a bar.
+class BarAwareSink final : public spdlog::sinks::sink {
+ public:
+  explicit BarAwareSink(spdlog::sink_ptr inner) : inner_(std::move(inner)) {}
+  void log(const spdlog::details::log_msg& msg) override {
+    console_internal::WithBarErased([&] {
+      inner_->log(msg);
+      inner_->flush();
+    });
+  }
+  void flush() override { inner_->flush(); }
+  void set_pattern(const std::string& pattern) override { inner_->set_pattern(pattern); }
+  void set_formatter(std::unique_ptr<spdlog::formatter> f) override {
+    inner_->set_formatter(std::move(f));
+  }
+
+ private:
+  spdlog::sink_ptr inner_;
+};
 
 struct Registry {
   std::mutex mu;
@@ -21,7 +44,8 @@ struct Registry {
 Registry& R() {
   static Registry* r = [] {
     auto* reg = new Registry;
-    auto console = std::make_shared<spdlog::sinks::stderr_color_sink_mt>();
+    auto console = std::make_shared<BarAwareSink>(
+        std::make_shared<spdlog::sinks::stderr_color_sink_mt>());
     console->set_pattern("%^%L%$ %-7n %v");
     reg->sinks.push_back(console);
     if (const char* env = std::getenv("RIG_LOG_LEVEL")) {

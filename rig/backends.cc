@@ -38,6 +38,7 @@ class WorldTrackingMotor final : public Motor {
   Result<Pose> Position() override { return inner_->Position(); }
   Status Stop() override { return inner_->Stop(); }
   Status Reconnect() override { return Track([&] { return inner_->Reconnect(); }); }
+  Status Unlock() override { return inner_->Unlock(); }
 
  private:
   template <typename F>

@@ -4,6 +4,7 @@
 #include <string>
 
 #include "build_info.h"
+#include "config/console.h"
 #include "process/io/image_io.h"
 #include "rig/backends.h"
 #include "rig/commands/command.h"
@@ -25,6 +26,8 @@ void PrintUsage(FILE* out) {
 
 int main(int argc, char** argv) {
   rig::ReuseFreedImageMemory();  // poses reuse the memory of the one before (docs/hdr.md)
+  // Progress bars on long steps; drawn only when stderr is a terminal (config/console.h).
+  rig::EnableProgress(true);
   if (argc < 2) {
     PrintUsage(stderr);
     return 2;

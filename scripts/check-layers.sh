@@ -1,13 +1,13 @@
 #!/usr/bin/env bash
 # Fails when an #include runs against the layers. The units, lowest first; a file may include
 # its own unit and any unit below it, never one above:
-#   config < process/{io,hdr,model,render,export,evaluate} < capture/{plan,devices,session,daemon}
+#   config < process/{io,hdr,model,geometry,render,export,evaluate} < capture/{plan,devices,session,daemon,service}
 #   < sim < rig
 # (tests/ and bench/ may include anything.) Usage: check-layers.sh [SOURCE_ROOT]
 set -euo pipefail
 root=${1:-$(cd "$(dirname "$0")/.." && pwd)}
-units=(config process/io process/hdr process/model process/render process/export process/evaluate
-       capture/plan capture/devices capture/session capture/daemon sim rig)
+units=(config process/io process/hdr process/model process/geometry process/render process/export process/evaluate
+       capture/plan capture/devices capture/session capture/daemon capture/service sim rig)
 
 rank_of() {  # the rank of the unit a path (file or include) belongs to, -1 if none
   local p=$1 i

@@ -16,6 +16,8 @@ packages=(
   zlib1g-dev
   # collections (rig collection: share/rig/Snakefile)
   snakemake
+  # rig daemon: its HTTP+JSON API; chromium: the status page tested in a headless browser
+  libcpp-httplib-dev chromium
   # tests and benchmarks (libltdl-dev, xz-utils: building libgphoto2's virtual camera)
   libgtest-dev libgmock-dev libbenchmark-dev libltdl-dev xz-utils
   # the relighting page's browser test (rig view): a headless browser, a loopback HTTP server

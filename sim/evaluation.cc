@@ -17,6 +17,7 @@
 #include "capture/daemon/processor.h"
 #include "capture/plan/pose.h"
 #include "capture/session/session_store.h"
+#include "config/builtin_config.h"
 #include "config/config.h"
 #include "config/log.h"
 #include "process/evaluate/evaluate.h"
@@ -302,9 +303,9 @@ Result<EvaluationReport> RunEvaluation(const EvaluationRequest& request) {
   std::vector<std::string> scenes;
   fs::path main_session = request.session;
   if (request.dry_run) {
-    auto cfg = LoadConfigOrError(request.config_path);
-    if (!cfg.ok()) return cfg.error();
-    base = *cfg;
+    ConfigResult cfg = LoadConfigOrBuiltIn(request.config_path);
+    if (!cfg.ok()) return cfg.AsError();
+    base = cfg.config;
     base.sim.width = request.width;
     base.sim.height = request.height;
     scenes = request.quick ? std::vector<std::string>{"matte", "full"}

@@ -18,7 +18,7 @@ struct EvaluationRequest {
   // Simulate sessions instead (every scene; the configuration's [sim] at width x height)
   // under out/sessions/<scene>; sessions left by an interrupted evaluation are reused.
   bool dry_run = false;
-  std::string config_path = "config/sim.toml";
+  std::string config_path;  // empty: the built-in config/sim.toml (works from any folder)
   int width = 160, height = 120;
   // Real HDR images (.exr, .hdr) used as HDR truth; a missing folder is a warning.
   std::filesystem::path hdr_images = "../shared/data/hdr";

@@ -324,10 +324,15 @@ void GrblEmulator::Reset(bool power_up, double banner_delay_s) {
     booting_ = true;
     boot_done_real_ = RealNow() + banner_delay_s;
   } else {
-    bool in_motion = state_ == "Home" || Moving();
+    // 1.1h's mc_reset(): ALARM:3 only in a motion state (cycle, homing, jog) or while a
+    // feed hold is still decelerating (STEP_CONTROL_EXECUTE_HOLD). A completed hold
+    // ("Hold:0") clears that flag, so a reset then keeps the position and raises nothing.
+    bool in_motion = state_ == "Home" || (holding_ ? hold_substate_ == 1 : !planner_.empty());
     if (in_motion) {
       SendLine(state_ == "Home" ? "ALARM:6" : "ALARM:3");
       state_ = "Alarm";
+    } else if (state_ != "Alarm") {
+      state_ = "Idle";  // an alarm lock survives a reset (main.c keeps the prior state)
     }
   }
   planner_.clear();

@@ -50,6 +50,15 @@ Vec3 Normalize(const Vec3& v) {
 
 double Dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
+// Does the ray p + s l (s > 0) from a point outside the sphere meet it? Both roots then
+// have the sign of -b.
+bool RayHitsSphere(const Vec3& p, const Vec3& l, const Vec3& center, double radius) {
+  const Vec3 oc = {p[0] - center[0], p[1] - center[1], p[2] - center[2]};
+  const double b = Dot(oc, l);
+  const double c = Dot(oc, oc) - radius * radius;
+  return b < 0 && b * b - c > 0;
+}
+
 nlohmann::json Rgb(const std::array<double, 3>& c) { return {c[0], c[1], c[2]}; }
 
 }  // namespace
@@ -67,6 +76,14 @@ Result<SimScene> SimScene::Create(const SimConfig& sim) {
   s.width_ = sim.width;
   s.height_ = sim.height;
   s.seed_ = sim.seed;
+  s.chrome_spheres_ = sim.chrome_spheres;
+  s.matte_sphere_ = sim.matte_sphere;
+  s.mm_per_unit_ = sim.field_height_mm / 2.0;
+  s.lamp_distance_ = sim.lamp_distance_mm / s.mm_per_unit_;
+  if (s.lamp_distance_ > 0 && s.lamp_distance_ < 4.0)
+    return MakeError(ErrorCode::kInvalidInput, "sim.lamp_distance_mm",
+                     "a lamp {} mm away is inside the {} mm scene (needs at least 2 field "
+                     "heights)", sim.lamp_distance_mm, sim.field_height_mm);
   s.Build();
   return s;
 }
@@ -104,6 +121,15 @@ void SimScene::Build() {
   materials_[0] = {"plane", 0, 1};
   materials_[1] = {"sphere", 0, 1};
   materials_[2] = {"relief", 0, 1};
+  materials_[3] = {"chrome", 0.8, 1000};
+  materials_[4] = {"matte", 0, 1};
+  // The calibration spheres: in corners the main sphere and the relief leave free, in front
+  // of the plane; the second chrome sphere further back, out of the first one's light path
+  // at h 90 (a sphere shadowing another's highlight biases it).
+  extras_.clear();
+  if (chrome_spheres_ >= 1) extras_.push_back({{-0.95, 0.68, -0.3}, 0.28, SimMaterialId::kChrome});
+  if (chrome_spheres_ >= 2) extras_.push_back({{1.08, 0.76, -0.7}, 0.22, SimMaterialId::kChrome});
+  if (matte_sphere_) extras_.push_back({{1.06, -0.76, -0.3}, 0.22, SimMaterialId::kMatte});
   if (kind_ == "gloss") {
     materials_[0] = {"plane", 0.05, 10};
     materials_[1] = {"sphere", 0.35, 20};
@@ -119,6 +145,7 @@ void SimScene::Build() {
   normal_.assign(3 * n, 0.f);
   albedo_.assign(3 * n, 0.f);
   material_.assign(n, 0);
+  depth_.assign(n, 0.f);
   const double k = 2 * kPi / relief_wavelength_;
   for (int j = 0; j < height_; ++j) {
     const double y = PixelY(j);
@@ -131,7 +158,26 @@ void SimScene::Build() {
       const double dx = x - sphere_center_[0], dy = y - sphere_center_[1];
       const double rr = sphere_radius_ * sphere_radius_ - dx * dx - dy * dy;
       const double noise = ValueNoise(x, y, noise_cell_, seed, 1);
-      if (rr > 0) {
+      const ExtraSphere* extra = nullptr;
+      double err = 0;
+      for (const ExtraSphere& e : extras_) {
+        const double ex = x - e.center[0], ey = y - e.center[1];
+        err = e.radius * e.radius - ex * ex - ey * ey;
+        if (err > 0) {
+          extra = &e;
+          break;
+        }
+      }
+      double depth;
+      if (extra) {
+        id = extra->id;
+        const double r = extra->radius;
+        nrm = {(x - extra->center[0]) / r, (y - extra->center[1]) / r, std::sqrt(err) / r};
+        depth = extra->center[2] + std::sqrt(err);
+        rgb = id == SimMaterialId::kChrome ? std::array<double, 3>{0.005, 0.005, 0.005}
+                                           : std::array<double, 3>{0.6, 0.6, 0.6};
+      } else if (rr > 0) {
+        depth = sphere_center_[2] + std::sqrt(rr);
         id = SimMaterialId::kSphere;
         nrm = {dx / sphere_radius_, dy / sphere_radius_, std::sqrt(rr) / sphere_radius_};
         // Latitude bands on the sphere, with a little noise.
@@ -142,6 +188,7 @@ void SimScene::Build() {
       } else if (relief_ && x >= relief_box_[0] && x <= relief_box_[1] && y >= relief_box_[2] &&
                  y <= relief_box_[3]) {
         id = SimMaterialId::kRelief;
+        depth = PlaneZ(x, y) + relief_amplitude_ * std::sin(k * x) * std::sin(k * y);
         // Height field on the plane: z = plane + A sin(kx) sin(ky).
         double gx = plane_dzdx_ + relief_amplitude_ * k * std::cos(k * x) * std::sin(k * y);
         double gy = plane_dzdy_ + relief_amplitude_ * k * std::sin(k * x) * std::cos(k * y);
@@ -150,6 +197,7 @@ void SimScene::Build() {
         rgb = {relief_rgb_[0] * m, relief_rgb_[1] * m, relief_rgb_[2] * m};
       } else {
         id = SimMaterialId::kPlane;
+        depth = PlaneZ(x, y);
         nrm = plane_normal_;
         auto cx = static_cast<int64_t>(std::floor(x / checker_size_));
         auto cy = static_cast<int64_t>(std::floor(y / checker_size_));
@@ -158,6 +206,7 @@ void SimScene::Build() {
         rgb = {c[0] * m, c[1] * m, c[2] * m};
       }
       material_[p] = static_cast<uint8_t>(id);
+      depth_[p] = static_cast<float>(depth);
       for (int c = 0; c < 3; ++c) {
         normal_[3 * p + c] = static_cast<float>(nrm[c]);
         albedo_[3 * p + c] = static_cast<float>(rgb[2 - c]);  // BGR
@@ -175,10 +224,56 @@ bool SimScene::Shadowed(int i, int j, const Vec3& l) const {
   // does the ray P + s L (s > 0) meet the sphere? P lies outside the sphere, so both roots
   // have the sign of -b.
   const double x = PixelX(i), y = PixelY(j);
-  const Vec3 oc = {x - sphere_center_[0], y - sphere_center_[1], PlaneZ(x, y) - sphere_center_[2]};
+  const size_t p = static_cast<size_t>(j) * width_ + i;
+  const auto id = static_cast<SimMaterialId>(material_[p]);
+  const bool extra = id == SimMaterialId::kChrome || id == SimMaterialId::kMatte;
+  const Vec3 oc = {x - sphere_center_[0], y - sphere_center_[1],
+                   (extra ? depth_[p] : PlaneZ(x, y)) - sphere_center_[2]};
   const double b = Dot(oc, l);
   const double c = Dot(oc, oc) - sphere_radius_ * sphere_radius_;
   return b < 0 && b * b - c > 0;
+}
+
+bool SimScene::ShadowedByExtras(int i, int j, const Vec3& l) const {
+  const double x = PixelX(i), y = PixelY(j);
+  const size_t p = static_cast<size_t>(j) * width_ + i;
+  const auto id = static_cast<SimMaterialId>(material_[p]);
+  const bool on_sphere = id != SimMaterialId::kPlane && id != SimMaterialId::kRelief;
+  const Vec3 pt = {x, y, on_sphere ? depth_[p] : PlaneZ(x, y)};
+  for (const ExtraSphere& e : extras_) {
+    const double ex = x - e.center[0], ey = y - e.center[1];
+    if (ex * ex + ey * ey < e.radius * e.radius) continue;  // its own sphere
+    if (RayHitsSphere(pt, l, e.center, e.radius)) return true;
+  }
+  return false;
+}
+
+Vec3 SimScene::SurfacePoint(int i, int j) const {
+  return {PixelX(i), PixelY(j), depth_[static_cast<size_t>(j) * width_ + i]};
+}
+
+Vec3 SimScene::LightAt(int i, int j, const Vec3& light_dir, double* falloff) const {
+  const Vec3 l = Normalize(light_dir);
+  if (lamp_distance_ <= 0) {
+    *falloff = 1;
+    return l;
+  }
+  const Vec3 p = SurfacePoint(i, j);
+  const Vec3 d = {lamp_distance_ * l[0] - p[0], lamp_distance_ * l[1] - p[1],
+                  lamp_distance_ * l[2] - p[2]};
+  const double dist2 = Dot(d, d);
+  *falloff = lamp_distance_ * lamp_distance_ / dist2;
+  const double inv = 1.0 / std::sqrt(dist2);
+  return {d[0] * inv, d[1] * inv, d[2] * inv};
+}
+
+std::vector<SimSphereView> SimScene::CalibrationSpheres() const {
+  std::vector<SimSphereView> out;
+  const double s = height_ / 2.0;  // pixels per scene unit
+  for (const ExtraSphere& e : extras_)
+    out.push_back({e.id, e.center[0] * s + width_ / 2.0, height_ / 2.0 - e.center[1] * s,
+                   e.radius * s, e.center, e.radius});
+  return out;
 }
 
 std::array<double, 3> SimScene::BrdfAt(int i, int j, const Vec3& light_dir) const {
@@ -189,6 +284,7 @@ std::array<double, 3> SimScene::BrdfAt(int i, int j, const Vec3& light_dir) cons
   if (ndl <= 0) return {0, 0, 0};
   const auto id = static_cast<SimMaterialId>(material_[p]);
   if (cast_shadows_ && id != SimMaterialId::kSphere && Shadowed(i, j, l)) return {0, 0, 0};
+  if (cast_shadows_ && !extras_.empty() && ShadowedByExtras(i, j, l)) return {0, 0, 0};
   const Material& m = materials_[material_[p]];
   double spec = 0;
   const Vec3 hv = {l[0], l[1], l[2] + 1.0};
@@ -210,8 +306,8 @@ cv::Mat SimScene::Brdf(const Vec3& light_dir) const {
   const double hn = std::sqrt(Dot(hv, hv));
   const Vec3 h = hn > 1e-12 ? Vec3{hv[0] / hn, hv[1] / hn, hv[2] / hn} : Vec3{0, 0, 0};
   // Per material: scale * ks * (n + 8) / (8 pi), the lobe's constant.
-  std::array<double, 3> lobe;
-  for (int k = 0; k < 3; ++k)
+  std::array<double, 5> lobe;
+  for (int k = 0; k < 5; ++k)
     lobe[k] = materials_[k].ks * (materials_[k].shininess + 8) / (8 * kPi);
   const double inv_pi = 1.0 / kPi;
   for (int j = 0; j < height_; ++j) {
@@ -224,7 +320,8 @@ cv::Mat SimScene::Brdf(const Vec3& light_dir) const {
       const uint8_t id = material_[p];
       if (ndl <= 0 ||
           (cast_shadows_ && id != static_cast<uint8_t>(SimMaterialId::kSphere) &&
-           Shadowed(i, j, l))) {
+           Shadowed(i, j, l)) ||
+          (cast_shadows_ && !extras_.empty() && ShadowedByExtras(i, j, l))) {
         o[0] = o[1] = o[2] = 0.f;
         continue;
       }
@@ -242,7 +339,22 @@ cv::Mat SimScene::Brdf(const Vec3& light_dir) const {
 }
 
 cv::Mat SimScene::Radiance(const Vec3& light_dir, const std::array<double, 3>& lamp_rgb) const {
-  cv::Mat rho = Brdf(light_dir);
+  cv::Mat rho;
+  if (lamp_distance_ > 0) {
+    // A near lamp: every pixel its own direction and fall-off.
+    rho.create(height_, width_, CV_32FC3);
+    for (int j = 0; j < height_; ++j) {
+      float* row = rho.ptr<float>(j);
+      for (int i = 0; i < width_; ++i) {
+        double falloff = 1;
+        const Vec3 l = LightAt(i, j, light_dir, &falloff);
+        const auto v = BrdfAt(i, j, l);
+        for (int c = 0; c < 3; ++c) row[3 * i + c] = static_cast<float>(v[c] * falloff);
+      }
+    }
+  } else {
+    rho = Brdf(light_dir);
+  }
   // BGR image, RGB lamp.
   const float e[3] = {static_cast<float>(lamp_rgb[2]), static_cast<float>(lamp_rgb[1]),
                       static_cast<float>(lamp_rgb[0])};
@@ -274,9 +386,14 @@ cv::Mat SimScene::MaterialIds() const {
 
 nlohmann::json SimScene::Describe() const {
   nlohmann::json mats = nlohmann::json::array();
-  for (const auto& m : materials_)
+  // The calibration materials only when their spheres are there: a scene without them
+  // describes itself as before.
+  const size_t used = extras_.empty() ? 3 : materials_.size();
+  for (size_t k = 0; k < used; ++k) {
+    const auto& m = materials_[k];
     mats.push_back({{"name", m.name}, {"ks", m.ks}, {"shininess", m.shininess}});
-  return {
+  }
+  nlohmann::json out = {
       {"version", 1},
       {"kind", kind_},
       {"width", width_},
@@ -319,6 +436,21 @@ nlohmann::json SimScene::Describe() const {
         {"rgb", Rgb(relief_rgb_)}}},
       {"materials", mats},
   };
+  if (!extras_.empty()) {
+    nlohmann::json spheres = nlohmann::json::array();
+    for (const ExtraSphere& e : extras_)
+      spheres.push_back({{"material", e.id == SimMaterialId::kChrome ? "chrome" : "matte"},
+                         {"center", {e.center[0], e.center[1], e.center[2]}},
+                         {"radius", e.radius}});
+    out["calibration_spheres"] = spheres;
+  }
+  if (lamp_distance_ > 0)
+    out["near_lamp"] = {{"distance", lamp_distance_},
+                        {"mm_per_unit", mm_per_unit_},
+                        {"model",
+                         "point lamp at distance * direction(h, v) from the origin; per pixel "
+                         "L = normalize(lamp - P), radiance *= (distance / |lamp - P|)^2"}};
+  return out;
 }
 
 }  // namespace rig

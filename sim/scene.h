@@ -25,6 +25,17 @@
 // Scenes (config sim.scene): "matte" (Lambertian only), "gloss" (broad lobes), "sharp"
 // (a sharp lobe on the sphere), "full" (gloss, the relief, and the sphere's cast shadow).
 // Everything is deterministic from (scene, width, height, seed).
+//
+// Calibration targets (sim.chrome_spheres, sim.matte_sphere; off by default): up to two
+// chrome spheres (a mirror-like sharp lobe, ks 0.8, n 1000, over a 0.5% grey diffuse; top left,
+// top right) and a matte grey sphere (bottom right), in front of the plane; in "full" they
+// cast and receive shadows like the main sphere.
+//
+// Near lamp (sim.lamp_distance_mm > 0): the lamp is a point at that distance from the origin
+// (the arm's centre of rotation) in the commanded direction; every pixel sees it from its own
+// surface point, in its own direction, with the 1/d^2 fall-off normalised to 1 at the origin.
+// Radiance() applies it; Brdf() stays the far-lamp apparent BRDF (the relighting truth).
+// sim.field_height_mm gives the scene's 2 units of height in mm.
 #pragma once
 
 #include <array>
@@ -42,7 +53,16 @@
 namespace rig {
 
 // Material ids of MaterialIds().
-enum class SimMaterialId : uint8_t { kPlane = 0, kSphere = 1, kRelief = 2 };
+enum class SimMaterialId : uint8_t { kPlane = 0, kSphere = 1, kRelief = 2, kChrome = 3, kMatte = 4 };
+
+// A calibration sphere as the camera sees it: centre and radius in pixels (column, row; the
+// pixel grid's continuous coordinates, pixel (i, j) covering [i, i + 1) x [j, j + 1)).
+struct SimSphereView {
+  SimMaterialId material = SimMaterialId::kChrome;
+  double cx_px = 0, cy_px = 0, r_px = 0;
+  Vec3 center{};  // object frame, scene units
+  double radius = 0;
+};
 
 class SimScene {
  public:
@@ -76,6 +96,17 @@ class SimScene {
   // Every parameter of the scene, enough to re-create and check it (see LoadTruthScene).
   nlohmann::json Describe() const;
 
+  // The chrome and matte spheres present (sim.chrome_spheres, sim.matte_sphere).
+  std::vector<SimSphereView> CalibrationSpheres() const;
+  // The near lamp's distance in scene units (0: a far lamp) and mm per scene unit.
+  double lamp_distance() const { return lamp_distance_; }
+  double mm_per_unit() const { return mm_per_unit_; }
+  // The surface point pixel (i, j) sees (object frame, scene units).
+  Vec3 SurfacePoint(int i, int j) const;
+  // The direction pixel (i, j) sees a lamp commanded to `light_dir` in, and the fall-off
+  // factor (1 for a far lamp).
+  Vec3 LightAt(int i, int j, const Vec3& light_dir, double* falloff) const;
+
  private:
   struct Material {
     std::string name;
@@ -83,8 +114,17 @@ class SimScene {
     double shininess = 1;   // its exponent n
   };
 
+  struct ExtraSphere {
+    Vec3 center{};
+    double radius = 0;
+    SimMaterialId id = SimMaterialId::kChrome;
+  };
+
   SimScene() = default;
   void Build();
+  // rho of pixel p = (i, j) for the unit direction l (shadows included), B, G, R.
+  void Shade(int i, int j, const Vec3& l, float* out) const;
+  bool ShadowedByExtras(int i, int j, const Vec3& l) const;
   bool Shadowed(int i, int j, const Vec3& l) const;
   double PixelX(int i) const { return (i + 0.5 - width_ / 2.0) / (height_ / 2.0); }
   double PixelY(int j) const { return (height_ / 2.0 - j - 0.5) / (height_ / 2.0); }
@@ -107,12 +147,17 @@ class SimScene {
   std::array<double, 3> plane_rgb_light_{}, plane_rgb_dark_{}, sphere_rgb_a_{}, sphere_rgb_b_{},
       relief_rgb_{};  // R, G, B
   double checker_size_ = 0, noise_cell_ = 0;
-  std::array<Material, 3> materials_;
+  std::array<Material, 5> materials_;
+  int chrome_spheres_ = 0;
+  bool matte_sphere_ = false;
+  std::vector<ExtraSphere> extras_;
+  double lamp_distance_ = 0, mm_per_unit_ = 50;
 
   // Per pixel, row-major.
   std::vector<float> normal_;  // 3 per pixel: x, y, z
   std::vector<float> albedo_;  // 3 per pixel: B, G, R
   std::vector<uint8_t> material_;
+  std::vector<float> depth_;   // z of the surface point, per pixel
 };
 
 }  // namespace rig

@@ -18,7 +18,7 @@ namespace fs = std::filesystem;
 
 nlohmann::json SimJson(const SimConfig& sim) {
   const auto& k = sim.camera;
-  return {{"seed", sim.seed},
+  nlohmann::json out = {{"seed", sim.seed},
           {"scene", sim.scene},
           {"width", sim.width},
           {"height", sim.height},
@@ -33,6 +33,15 @@ nlohmann::json SimJson(const SimConfig& sim) {
             {"jpeg_quality", k.jpeg_quality},
             {"shutter_min_s", k.shutter_min_s},
             {"shutter_max_s", k.shutter_max_s}}}};
+  // Calibration targets and the near lamp (docs/lights.md), only when used: the truth of a
+  // session without them is unchanged.
+  if (sim.chrome_spheres > 0) out["chrome_spheres"] = sim.chrome_spheres;
+  if (sim.matte_sphere) out["matte_sphere"] = true;
+  if (sim.lamp_distance_mm > 0) {
+    out["lamp_distance_mm"] = sim.lamp_distance_mm;
+    out["field_height_mm"] = sim.field_height_mm;
+  }
+  return out;
 }
 
 std::string Fmt3(const std::array<double, 3>& v) {
@@ -123,6 +132,10 @@ Result<SimTruth> LoadTruth(const std::string& truth_dir) {
     sim.scene = s.at("scene").get<std::string>();
     sim.width = s.at("width").get<int>();
     sim.height = s.at("height").get<int>();
+    sim.chrome_spheres = s.value("chrome_spheres", 0);
+    sim.matte_sphere = s.value("matte_sphere", false);
+    sim.lamp_distance_mm = s.value("lamp_distance_mm", 0.0);
+    sim.field_height_mm = s.value("field_height_mm", sim.field_height_mm);
     const auto& k = s.at("camera");
     sim.camera.gain = k.at("gain").get<double>();
     sim.camera.full_well = k.at("full_well").get<double>();

@@ -61,14 +61,23 @@ bool IsImage(const std::string& ext) { return ext == "jpg" || ext == "png" || ex
 }  // namespace
 
 std::string CaptureSummary::ToString() const {
-  double accounted = motion_s + settle_s + lamp_s + camera_s + storage_s + queue_wait_s;
+  double accounted =
+      motion_s + settle_s + lamp_s + camera_s + storage_s + queue_wait_s + processing_tail_s;
+  // The shutter is part of the camera's time only when the body waited it out; a simulated
+  // camera renders at once, and its frames' exposures add up to more than its time.
+  std::string shutter =
+      exposure_s <= camera_s + 1e-9
+          ? fmt::format(" (of which shutter {:.2f} s)", exposure_s)
+          : fmt::format(" (the frames' exposures add up to {:.2f} s, not waited for: a simulated "
+                        "camera)",
+                        exposure_s);
   std::string s = fmt::format(
       "poses {}  frames {} (captured now {}, verified from before {}, redone {})  retries {}  "
       "faults {}\n"
-      "time {:.2f} s: motion {:.2f}, settle {:.2f}, lamp {:.2f}, camera {:.2f} (of which "
-      "shutter time {:.2f}), storage {:.2f}, waiting on processing {:.2f}, own overhead {:.2f}",
+      "time {:.2f} s: motion {:.2f} s, settle {:.2f} s, lamp {:.2f} s, camera {:.2f} s{}, "
+      "storage {:.2f} s, waiting on processing {:.2f} s, own overhead {:.2f} s",
       poses, frames, frames_captured, frames_verified, frames_redone, retries, faults, total_s,
-      motion_s, settle_s, lamp_s, camera_s, exposure_s, storage_s, queue_wait_s,
+      motion_s, settle_s, lamp_s, camera_s, shutter, storage_s, queue_wait_s,
       std::max(0.0, total_s - accounted));
   s += fmt::format(
       "\nprocessing: {} radiance maps, {} failed; decode {:.2f} s, response {:.2f} s, merge "
@@ -118,28 +127,32 @@ CaptureDaemon::CaptureDaemon(Session& session, Camera& camera, Motor& motor, Lam
 // every pose, finish.
 Status CaptureDaemon::Run(CaptureSummary* summary) {
   RunState run{*summary};
-  // A run that stops early (a fault, a full disk) still reports what processing did and what
-  // failed: never "0 failed" below failed writes.
-  struct CollectOnEarlyReturn {
-    RunState& run;
-    ~CollectOnEarlyReturn() {
-      if (!run.processor || run.sum.processing_collected) return;
-      run.progress.reset();
+  Status st = [&]() -> Status {
+    run.poses = PlanGrid(session_.config().grid);
+    RIG_TRY(VerifyStored(run));
+    RIG_TRY(session_.journal().Append(
+        {{"event", run.plan_record ? "resume" : "start"}, {"pid", ::getpid()}}));
+    RIG_TRY(OpenDevices(run));
+    RIG_TRY(Plan(run));
+    StartProcessing(run);
+    RIG_TRY(Home(run));
+    run.progress.emplace(options_.progress ? run.sum.frames : 0, run.already);
+    for (const Pose& pose : run.poses) RIG_TRY(VisitPose(run, pose));
+    return Finish(run);
+  }();
+  if (!st.ok()) {
+    // A fault, a stop or a full disk: the summary still tells what this run did, what processing
+    // did and what failed (never "0 failed" below failed writes), and how long it took.
+    if (run.progress) run.progress->Finish();
+    if (run.processor && !run.sum.processing_collected) {
+      auto t_tail = Clock::now();
       run.sum.processing = run.processor->Finish();
+      run.sum.processing_tail_s = Since(t_tail);
       run.sum.processing_collected = true;
     }
-  } collect{run};
-  run.poses = PlanGrid(session_.config().grid);
-  RIG_TRY(VerifyStored(run));
-  RIG_TRY(session_.journal().Append(
-      {{"event", run.plan_record ? "resume" : "start"}, {"pid", ::getpid()}}));
-  RIG_TRY(OpenDevices(run));
-  RIG_TRY(Plan(run));
-  StartProcessing(run);
-  RIG_TRY(Home(run));
-  run.progress.emplace(options_.progress ? run.sum.frames : 0, run.already);
-  for (const Pose& pose : run.poses) RIG_TRY(VisitPose(run, pose));
-  return Finish(run);
+    run.sum.total_s = Since(run.t_start);
+  }
+  return st;
 }
 
 // ---- Verify what is stored (resume) ---------------------------------------------------------
@@ -318,10 +331,17 @@ void CaptureDaemon::StartProcessing(RunState& run) {
 
 // ---- Home, visit the poses --------------------------------------------------------------
 
-// Homes the axes when anything is left to capture (on start if configured, always on resume).
+// Homes the axes when anything is left to capture and motor.home_on_start says so, on start
+// and on resume alike: a machine without limit switches cannot home, and must still resume.
 Status CaptureDaemon::Home(RunState& run) {
   const MotorConfig& mc = session_.config().motor;
-  if (run.already >= run.sum.frames || !(mc.home_on_start || run.plan_record)) return Ok();
+  if (run.already >= run.sum.frames) return Ok();
+  if (!mc.home_on_start) {
+    if (run.plan_record)
+      Log("session")->info("resume without homing (motor.home_on_start = false): the controller's "
+                           "position is trusted");
+    return Ok();
+  }
   if (StopRequested()) return Interrupted(run);
   auto t0 = Clock::now();
   run.current_pose = "home";

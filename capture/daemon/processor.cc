@@ -178,6 +178,11 @@ bool HdrStage::EnsureResponse(bool force) {
 }
 
 void HdrStage::Merge(BracketJob& job) {
+  MergeOne(job);
+  if (on_pose_) on_pose_(job.pose.Name());
+}
+
+void HdrStage::MergeOne(BracketJob& job) {
   std::string name = job.pose.Name();
   fs::path out = layout_.Hdr(name);
   if (skip_up_to_date_ && fs::exists(out)) {

@@ -7,6 +7,7 @@
 // through a bounded queue) and `rig process` (stored brackets).
 #pragma once
 
+#include <functional>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -59,11 +60,14 @@ class HdrStage {
   void Flush();
   // Skips poses whose radiance map is newer than their frames and the response.
   void set_skip_up_to_date(bool skip) { skip_up_to_date_ = skip; }
+  // Called after each pose is merged, skipped or failed (for a progress bar).
+  void set_on_pose(std::function<void(const std::string& pose)> f) { on_pose_ = std::move(f); }
   const ProcessingSummary& summary() const { return summary_; }
 
  private:
   bool EnsureResponse(bool force);
   void Merge(BracketJob& job);
+  void MergeOne(BracketJob& job);
   Result<Bracket> Decode(BracketJob& job);
 
   SessionLayout layout_;
@@ -73,6 +77,7 @@ class HdrStage {
   bool skip_up_to_date_ = false;
   bool recovery_failed_ = false;
   ProcessingSummary summary_;
+  std::function<void(const std::string& pose)> on_pose_;
 };
 
 // A worker thread with a bounded queue in front of an HdrStage.

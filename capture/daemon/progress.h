@@ -1,9 +1,12 @@
-// Console progress of a capture session: a bar with pose, frame, elapsed and remaining time
-// on a terminal; a log line per pose otherwise.
+// Console progress of a capture session: a bar with pose, frame, elapsed time and ETA on a
+// terminal (config/console.h: log lines never tear it); a log line per pose otherwise.
 #pragma once
 
 #include <chrono>
+#include <optional>
 #include <string>
+
+#include "config/console.h"
 
 namespace rig {
 
@@ -17,11 +20,10 @@ class Progress {
   void Finish();
 
  private:
-  void Draw(const std::string& pose, int index_in_bracket, int bracket_size);
   int total_, done_, start_done_;
   bool tty_;
-  bool drawn_ = false;
   std::chrono::steady_clock::time_point start_;
+  std::optional<ProgressTask> task_;
 };
 
 }  // namespace rig

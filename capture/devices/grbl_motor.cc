@@ -182,6 +182,14 @@ Error GrblMotor::Fail(ErrorCode code, const std::string& message) const {
   return Error{code, message, selector_.Describe()};
 }
 
+Error GrblMotor::AlarmLocked() const {
+  return Fail(ErrorCode::kFault,
+              "the controller is alarm-locked ([MSG:'$H'|'$X' to unlock]) and refuses motion: it does "
+              "not know where the arm is. Home it with $H ('rig home', or motor.home_on_start = true), "
+              "or, only if the arm is known to stand where the controller last had it, unlock it with "
+              "$X ('rig home --unlock')");
+}
+
 Error GrblMotor::AlarmError(int code, const std::string& during) const {
   return Fail(ErrorCode::kDevice, fmt::format("ALARM:{} {}: {}", code, during, GrblAlarmMeaning(code)));
 }
@@ -432,8 +440,12 @@ Status GrblMotor::DoHome() {
   auto it = settings_.find(22);
   if (it != settings_.end() && it->second == 0)
     return Fail(ErrorCode::kUnsupported,
-                "homing is disabled on the controller ($22=0): fit limit switches and set $22=1, or set "
-                "motor.home_on_start = false");
+                config_.home_on_start
+                    ? "homing is disabled on the controller ($22=0): fit limit switches and set $22=1, or "
+                      "set motor.home_on_start = false (then pose 0,0 is where the arm stands at power-up)"
+                    : "homing is disabled on the controller ($22=0): without limit switches there is no "
+                      "homing cycle; pose 0,0 is where the arm stood at power-up (fit switches and set "
+                      "$22=1 to home)");
   pending_alarm_ = 0;
   RIG_TRY(Queue("$H"));
   auto r = AwaitResponse(Seconds(config_.move_timeout_s), OnAlarm::kRecord);
@@ -481,6 +493,20 @@ Status GrblMotor::Home() {
   return st;
 }
 
+Status GrblMotor::Unlock() {
+  if (!port_) return Fail(ErrorCode::kFault, "not open");
+  RIG_TRY(Queue("$X"));
+  RIG_ASSIGN_OR_RETURN(Line r, AwaitResponse(Seconds(config_.reply_timeout_s), OnAlarm::kRecord));
+  if (r.kind == Kind::kError)
+    return Fail(ErrorCode::kDevice, fmt::format("$X refused: error:{} ({})", r.code, GrblErrorMeaning(r.code)));
+  RIG_ASSIGN_OR_RETURN(GrblStatus s, QueryStatus());
+  if (s.state == "Alarm") return Fail(ErrorCode::kDevice, "still in alarm after $X");
+  fault_.clear();
+  Log("motion")->warn("grbl port={} alarm lock killed with $X: the position is the controller's, unverified",
+                      selector_.Describe());
+  return Ok();
+}
+
 Status GrblMotor::MoveTo(const Pose& pose) {
   std::string where = "pose " + pose.Name();
   if (const std::string why = SoftLimitViolation(config_, pose); !why.empty())
@@ -503,8 +529,8 @@ Status GrblMotor::MoveTo(const Pose& pose) {
 Status GrblMotor::DoMove(const Pose& pose) {
   if (state_ == "Alarm") {
     RIG_ASSIGN_OR_RETURN(GrblStatus s, QueryStatus());
-    if (s.state == "Alarm")
-      return Fail(ErrorCode::kDevice, "the controller is in alarm lock (position unknown): home first");
+    // Retrying or reconnecting cannot clear an alarm lock (a reset keeps it): only $H or $X do.
+    if (s.state == "Alarm") return AlarmLocked();
   }
   const double upd = config_.grbl.units_per_degree;
   std::array<double, 3> target{};
@@ -611,14 +637,16 @@ Status GrblMotor::StopMotion(bool unlock) {
   }
   outstanding_.clear();
   if (unlock) {
-    // A reset during a hold raises ALARM:3 although the controlled deceleration kept
-    // every step: the position is still good, so unlock. (Not interruptible: this is how
-    // a Ctrl-C leaves the arm.)
+    // GRBL 1.1h raises ALARM:3 on a reset only in a motion state or while the hold is still
+    // decelerating (mc_reset()); after "Hold:0" the reset keeps every step and the state is
+    // Idle, with nothing to unlock. An alarm here means the hold did not complete in time:
+    // steps may be lost, so the lock stays and the axes must be homed. (Not interruptible:
+    // this is how a Ctrl-C leaves the arm.)
     auto s = QueryStatus(false);
     if (s.ok() && s->state == "Alarm") {
-      RIG_TRY(Queue("$X"));
-      RIG_ASSIGN_OR_RETURN(Line r, AwaitResponse(Seconds(config_.reply_timeout_s), OnAlarm::kRecord, false));
-      (void)r;
+      last_pose_.reset();
+      fault_ = "reset before the feed hold completed (ALARM:3): the position may be lost";
+      Log("motion")->error("grbl port={} {}; home before moving again", selector_.Describe(), fault_);
     }
   }
   return Ok();

@@ -52,6 +52,8 @@ class GrblMotor final : public Motor {
   Result<Pose> Position() override;
   Status Stop() override;
   Status Reconnect() override;
+  // $X: kills the alarm lock without homing (the controller's position is kept, unverified).
+  Status Unlock() override;
 
   // Diagnostics (for logs, tests and the benchmark).
   const std::string& fault() const { return fault_; }
@@ -90,6 +92,8 @@ class GrblMotor final : public Motor {
   Status AfterReconnect();
   Error Fail(ErrorCode code, const std::string& message) const;
   Error AlarmError(int code, const std::string& during) const;
+  // The alarm lock (power-up with homing enabled, or after an alarm): kFault, says $H / $X.
+  Error AlarmLocked() const;
   bool PortLost(const Error& e) const;
   std::array<double, 3> WorkPosition(const GrblStatus& s) const;
 

@@ -34,6 +34,10 @@ class Motor {
 
   // After a lost connection: reopen and re-home or verify, as configured.
   virtual Status Reconnect() = 0;
+
+  // Clears a controller's alarm lock without homing (GRBL's $X), trusting the position it
+  // holds. Controllers without such a lock: nothing to do.
+  virtual Status Unlock() { return Ok(); }
 };
 
 }  // namespace rig

@@ -15,6 +15,11 @@ inline bool StopRequested() { return StopSignal() != 0; }
 // For tests and for a stop requested by the program itself.
 void RequestStop(int signal_number);
 void ClearStopForTesting();
+// The first SIGINT/SIGTERM the handlers caught (0: none). RequestStop() does not set it: a
+// long-running service tells a stop it asked for itself from a signal sent to the process.
+int CaughtSignal();
+// Clears a stop the program requested (RequestStop), never one a caught signal set.
+void ClearRequestedStop();
 
 // Sleeps `d`, waking early (returning false) if a stop is requested.
 bool SleepUnlessStopped(Seconds d);

@@ -9,6 +9,7 @@
 
 #include "config/log.h"
 #include "process/evaluate/plot.h"
+#include "config/console.h"
 
 namespace rig {
 namespace {
@@ -138,7 +139,9 @@ Result<MethodEvaluation> EvaluateMethods(const MethodEvalInput& in) {
     for (int l = 1; l <= 4; ++l) candidates.push_back({BasisKind::kPtm, m, l});
 
   const double megapixels = in.radiance[0].total() / 1e6;
+  ProgressTask task("evaluating models", static_cast<int64_t>(candidates.size()));
   for (const auto& c : candidates) {
+    task.Advance(1, fmt::format("{} {} order {}", BasisKindName(c.basis), FitMethodName(c.method), c.order));
     MethodResult r;
     r.basis = BasisKindName(c.basis);
     r.method = FitMethodName(c.method);

@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 
 #include "process/model/model_stream.h"
+#include "config/console.h"
 
 namespace rig {
 Result<std::vector<MapListEntry>> ReadMapList(const std::string& list) {
@@ -107,12 +108,17 @@ Result<MapFitResult> FitMaps(const MapFitRequest& req) {
                                  r.selection.projector.basis.size(), r.loo_rmse);
     return result;
   }
-  for (const auto& e : entries) {
-    cv::Mat bgr, valid;
-    RIG_TRY(LoadRadiance(e.path, &bgr, &valid));
-    input.radiance.push_back(bgr);
-    input.valid.push_back(valid);
+  {
+    ProgressTask reading("reading radiance maps", static_cast<int64_t>(entries.size()));
+    for (const auto& e : entries) {
+      reading.Advance(1);
+      cv::Mat bgr, valid;
+      RIG_TRY(LoadRadiance(e.path, &bgr, &valid));
+      input.radiance.push_back(bgr);
+      input.valid.push_back(valid);
+    }
   }
+
   bool any_mask = false;
   for (const auto& v : input.valid) any_mask |= !v.empty();
   if (!any_mask) {

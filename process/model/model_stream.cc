@@ -20,6 +20,7 @@
 
 #include "config/log.h"
 #include "process/model/model.h"
+#include "config/console.h"
 
 namespace rig {
 namespace {
@@ -195,7 +196,9 @@ Result<StreamFitOutput> FitModelStreaming(const StreamFitInput& in, const FitOpt
       SampleMatrix coeffs;
       std::vector<uint8_t> valid_px;
       cv::Mat store, valid_store;
+      ProgressTask task("fitting the model", (h + band - 1) / band);
       for (int y0 = 0; y0 < h; y0 += band) {
+        task.Advance(1, fmt::format("rows {}-{}", y0, std::min(h, y0 + band) - 1));
         const int y1 = std::min(h, y0 + band), rows = y1 - y0;
         reader.Read(y0, y1, &bgr, &valid);
         RIG_TRY(BuildSamples(bgr, valid, in.lamp_radiance_rgb, o.transform, &y, &missing));

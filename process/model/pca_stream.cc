@@ -16,6 +16,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "process/io/jpeg_io.h"
+#include "config/console.h"
 
 namespace rig {
 namespace {
@@ -180,7 +181,9 @@ Result<PcaStreamFit> FitPcaStreaming(const std::vector<LpEntry>& entries,
     in.crop.directions = directions;
     in.crop.values.resize(in.crop.pixels() * dim);
     size_t next = 0;
+    ProgressTask task("reading bands", (h + band_rows - 1) / band_rows);
     for (int y0 = 0; y0 < h; y0 += band_rows) {
+      task.Advance(1, fmt::format("rows {}-{}", y0, std::min(h, y0 + band_rows) - 1));
       const int rows = std::min(band_rows, h - y0);
       RIG_TRY(reader.Read(rows));
       ++out.bands;

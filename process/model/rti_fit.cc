@@ -14,6 +14,7 @@
 #include "process/io/jpeg_io.h"
 #include "process/model/holdout.h"
 #include "process/model/model.h"
+#include "config/console.h"
 
 namespace rig {
 namespace {
@@ -115,10 +116,12 @@ Result<RtiCapture> LoadRtiCapture(const std::string& lp, int downsample,
   // Decoded on two threads (each image on its own); errors reported in .lp order.
   const size_t n = cap.entries.size();
   std::vector<Result<cv::Mat>> decoded(n, MakeError(ErrorCode::kInternal, lp, "not read"));
+  ProgressTask task("reading images", static_cast<int64_t>(n));
   auto decode = [&](size_t first) {
     for (size_t i = first; i < n; i += 2) {
       decoded[i] = ReadCaptureImage(cap.entries[i].image,
                                     fmt::format("{}:{}", lp, cap.entries[i].line));
+      task.Advance(1);
     }
   };
   std::thread second(decode, 1);

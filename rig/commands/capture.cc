@@ -4,6 +4,7 @@
 #include "config/log.h"
 #include "rig/backends.h"
 #include "rig/commands/command.h"
+#include "rig/commands/daemon_client.h"
 #include "rig/commands/session_run.h"
 #include "capture/devices/signals.h"
 
@@ -18,11 +19,13 @@ int RunCapture(int argc, char** argv) {
   std::string config_path, out;
   bool dry_run = false, no_process = false, no_progress = false;
   std::string level;
+  DaemonTarget daemon_target;
   app.add_option("--config", config_path, "session configuration (TOML)")->required();
   app.add_option("--out", out, "session folder to create (refused if it holds a session)")->required();
   app.add_flag("--dry-run", dry_run, "simulate every device (camera, motor, lamp), whatever the config says");
   app.add_flag("--no-process", no_process, "store frames only; process later with 'rig process'");
   app.add_flag("--no-progress", no_progress, "no progress bar");
+  AddDaemonOptions(app, &daemon_target);
   AddLogLevelOption(app, &level);
   if (auto rc = ParseCommandLine(app, argc, argv)) return *rc;
   if (auto rc = ApplyLogLevel(level)) return *rc;
@@ -31,6 +34,21 @@ int RunCapture(int argc, char** argv) {
   if (!cr.ok()) {
     for (const auto& d : cr.diagnostics) std::fprintf(stderr, "%s\n", d.ToString().c_str());
     return 2;
+  }
+  auto daemon = ResolveDaemon(daemon_target, /*fallback_default=*/false);
+  if (!daemon.ok()) return ReportError("capture", daemon.error());
+  if (*daemon) {
+    // The daemon owns the devices: hand it the job (the configuration as text, so that it
+    // need not see this machine's files), checked here first for file:line errors.
+    auto text = ReadFileBytes(config_path);
+    if (!text.ok()) return ReportError("capture", text.error());
+    nlohmann::json job = {{"kind", "capture"},
+                          {"session", fs::absolute(out).lexically_normal().string()},
+                          {"config", fs::absolute(config_path).string()},
+                          {"config_toml", std::string(text->begin(), text->end())},
+                          {"dry_run", dry_run},
+                          {"process", !no_process}};
+    return SubmitToDaemon("capture", **daemon, job, daemon_target.wait);
   }
   Config config = cr.config;
   if (dry_run) UseSimulatedBackends(&config);
@@ -47,6 +65,7 @@ int RunResume(int argc, char** argv) {
   std::string dir, level;
   std::vector<std::string> set;
   bool no_process = false, no_progress = false;
+  DaemonTarget daemon_target;
   app.add_option("SESSION", dir, "session folder")->required();
   app.add_option("--set", set,
                  "change a device setting first (KEY=VALUE, repeatable; e.g. "
@@ -55,9 +74,18 @@ int RunResume(int argc, char** argv) {
                  "grid, bracket or anything else that shapes a frame.");
   app.add_flag("--no-process", no_process, "store frames only");
   app.add_flag("--no-progress", no_progress, "no progress bar");
+  AddDaemonOptions(app, &daemon_target);
   AddLogLevelOption(app, &level);
   if (auto rc = ParseCommandLine(app, argc, argv)) return *rc;
   if (auto rc = ApplyLogLevel(level)) return *rc;
+  auto daemon = ResolveDaemon(daemon_target, /*fallback_default=*/false);
+  if (!daemon.ok()) return ReportError("resume", daemon.error());
+  if (*daemon) {
+    nlohmann::json job = {{"kind", "resume"},
+                          {"session", fs::absolute(dir).lexically_normal().string()},
+                          {"process", !no_process}};
+    return SubmitToDaemon("resume", **daemon, job, daemon_target.wait);
+  }
   auto session = Session::OpenExisting(dir);
   if (!session.ok()) return ReportError("resume", session.error());
   for (const auto& w : session->history().warnings) Log("session")->warn("{}", w);

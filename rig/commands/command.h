@@ -46,5 +46,15 @@ int RunView(int argc, char** argv);     // rig/commands/view.cc
 int RunHdr(int argc, char** argv);
 int RunRatioCheck(int argc, char** argv);
 int RunEvaluate(int argc, char** argv);
+// Bring-up on a real rig (rig/commands/{devices,jog,home,lamp,shot}.cc).
+int RunDevices(int argc, char** argv);
+int RunJog(int argc, char** argv);
+int RunHome(int argc, char** argv);
+int RunLamp(int argc, char** argv);
+int RunShot(int argc, char** argv);
+int RunDaemon(int argc, char** argv);  // rig/commands/daemon.cc
+int RunStatus(int argc, char** argv);  // rig/commands/status.cc
+int RunCalibrateLights(int argc, char** argv);  // rig/commands/calibrate_lights.cc
+int RunNormals(int argc, char** argv);          // rig/commands/normals.cc
 
 }  // namespace rig

@@ -7,6 +7,7 @@
 
 #include <filesystem>
 
+#include "config/console.h"
 #include "process/evaluate/rti_loo.h"
 #include "process/model/rti_fit.h"
 #include "rig/commands/command.h"
@@ -25,7 +26,8 @@ int RunEvaluate(int argc, char** argv) {
   std::string session_dir, out_dir, hdr_dir = request.hdr_images.string(), level;
   app.add_option("SESSION", session_dir, "a session with radiance maps (truth used when simulated)");
   app.add_flag("--dry-run", request.dry_run, "evaluate freshly simulated sessions (config's [sim], every scene)");
-  app.add_option("--config", request.config_path, "configuration of the simulated sessions (with --dry-run)");
+  app.add_option("--config", request.config_path, "configuration of the simulated sessions (with --dry-run; default: the "
+                 "built-in config/sim.toml)");
   app.add_option("--width", request.width, "simulated image width (default 160)")->check(CLI::Range(16, 4096));
   app.add_option("--height", request.height, "simulated image height (default 120)")->check(CLI::Range(16, 4096));
   app.add_option("--hdr-images", hdr_dir, "folder of real HDR images (.exr, .hdr) used as HDR truth");
@@ -56,8 +58,7 @@ int RunEvaluate(int argc, char** argv) {
     RtiLooOptions lo;
     lo.every = lp_every;
     auto rows = WriteRtiLooReport(*capture, lo, md, [](const RtiLooRow& r) {
-      std::printf("%s\n", RtiLooRowLine(r).c_str());
-      std::fflush(stdout);
+      ConsoleLine(stdout, RtiLooRowLine(r));
     });
     if (!rows.ok()) return ReportError("evaluate", rows.error());
     std::printf("report: %s\n", md.c_str());
@@ -70,10 +71,7 @@ int RunEvaluate(int argc, char** argv) {
   request.session = session_dir;
   request.hdr_images = hdr_dir;
   request.out = out_dir;
-  request.progress = [](const std::string& line) {
-    std::printf("%s\n", line.c_str());
-    std::fflush(stdout);
-  };
+  request.progress = [](const std::string& line) { ConsoleLine(stdout, line); };
 
   auto report = RunEvaluation(request);
   if (!report.ok()) return ReportError("evaluate", report.error());

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include <fmt/format.h>
@@ -25,6 +26,7 @@
 #include "process/export/relight_files.h"
 #include "process/model/model.h"
 #include "rig/commands/command.h"
+#include "config/console.h"
 
 namespace rig {
 namespace {
@@ -105,7 +107,10 @@ int ExportSessionLp(const ExportArgs& a) {
   std::sort(poses.begin(), poses.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
   std::vector<cv::Mat> maps;
   std::vector<float> sample;
+  std::optional<ProgressTask> reading(std::in_place, "reading radiance maps",
+                                      static_cast<int64_t>(poses.size()));
   for (const auto& [path, pose] : poses) {
+    reading->Advance(1, pose.Name());
     auto m = ReadRgbExr(path);
     if (!m.ok()) return ReportError("export", m.error());
     if (!maps.empty() && m->size() != maps[0].size()) {
@@ -117,6 +122,7 @@ int ExportSessionLp(const ExportArgs& a) {
     for (size_t i = 0; i < n; i += stride) sample.push_back(p[i]);
     maps.push_back(*m);
   }
+  reading.reset();
   const size_t q = static_cast<size_t>(0.995 * (sample.size() - 1));
   std::nth_element(sample.begin(), sample.begin() + q, sample.end());
   const float white = sample[q] > 0 ? sample[q] : 1.0f;

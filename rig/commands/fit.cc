@@ -12,6 +12,7 @@
 #include "process/model/pca_stream.h"
 #include "process/model/rti_fit.h"
 #include "rig/commands/command.h"
+#include "config/console.h"
 
 namespace rig {
 namespace {
@@ -80,7 +81,7 @@ void AddOptions(CLI::App& app, FitArgs* a) {
 }
 
 void PrintLooRow(const RtiLooRow& r) {
-  std::printf("%s\n", RtiLooRowLine(r).c_str());
+  ConsoleLine(stdout, RtiLooRowLine(r));
   std::fflush(stdout);
 }
 

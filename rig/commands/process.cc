@@ -1,6 +1,8 @@
 // rig process SESSION: (re)process stored brackets into radiance maps and the model.
 #include <cstdio>
+#include <optional>
 
+#include "config/console.h"
 #include "config/log.h"
 #include "rig/commands/command.h"
 #include "rig/commands/session_run.h"
@@ -45,8 +47,12 @@ int RunProcess(int argc, char** argv) {
   Config config = session->config();
   HdrStage stage(session->layout(), config);
   stage.set_skip_up_to_date(!force);
+  std::optional<ProgressTask> task(std::in_place, "radiance maps", static_cast<int64_t>(jobs->size()));
+  stage.set_on_pose([&](const std::string& pose) { task->Advance(1, "pose " + pose); });
   for (auto& job : *jobs) stage.Add(std::move(job));
   stage.Flush();
+  stage.set_on_pose(nullptr);
+  task.reset();
   const ProcessingSummary& s = stage.summary();
   std::printf("radiance maps: %d merged, %d up to date, %zu failed (response %s; decode %.2f s, "
               "response %.2f s, merge %.2f s, write %.2f s)\n",

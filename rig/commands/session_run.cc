@@ -3,6 +3,7 @@
 
 #include <cstdio>
 
+#include "config/console.h"
 #include "config/log.h"
 #include "rig/backends.h"
 #include "rig/commands/command.h"
@@ -21,6 +22,7 @@ int RunSession(Session& session, bool resuming, bool process, bool progress) {
     Status st = devices->write_truth(layout.truth(), PlanGrid(config.grid));
     if (!st.ok()) return ReportError("capture", st.error().Within("truth"));
   }
+  EnableProgress(progress);
   CaptureOptions options;
   options.settle_scale = devices->settle_scale;
   options.process = process;
@@ -62,6 +64,17 @@ int RunSession(Session& session, bool resuming, bool process, bool progress) {
 #include "process/model/model_stream.h"
 
 namespace rig {
+
+namespace {
+
+// What a leave-one-out RMS error in the fit space is measured in.
+std::string FitSpaceUnit(const std::string& space) {
+  if (space == "log") return "of ln(reflectance + eps), reflectance = radiance / lamp radiance";
+  if (space == "srgb") return "of sRGB-encoded reflectance (radiance / lamp radiance)";
+  return "of reflectance (radiance / lamp radiance), linear";
+}
+
+}  // namespace
 
 Status FitSessionModel(const Session& session) {
   auto log = Log("process");
@@ -119,12 +132,13 @@ Status FitSessionModel(const Session& session) {
   const double bpp = ec || pixels <= 0 ? 0.0 : static_cast<double>(model_bytes) / pixels;
   std::string md = fmt::format(
       "# Reflectance model of {}\n\nbasis {}, method {}, fit space {}; chosen order {} "
-      "({} terms); leave-one-out RMS error {:.5g} (in the fit space, the selection's own "
+      "({} terms); leave-one-out RMS error {:.5g} {} (the selection's own "
       "estimate); {:.1f} bytes per pixel on disk; fitted in {:.2f} s\n\n"
-      "| order | terms | supported | LOO RMS error | condition | λ (relative) |\n"
+      "| order | terms | supported | LOO RMS error ({}) | condition | λ (relative) |\n"
       "|---|---|---|---|---|---|\n",
       layout.root.string(), config.process.basis, config.process.fit_method, config.process.fit_space,
-      fit.selection.order, fit.selection.projector.basis.size(), fit.loo_rmse, bpp, fit.time_s);
+      fit.selection.order, fit.selection.projector.basis.size(), fit.loo_rmse,
+      FitSpaceUnit(config.process.fit_space), bpp, fit.time_s, FitSpaceUnit(config.process.fit_space));
   for (const auto& o : fit.selection.orders) {
     md += o.supported ? fmt::format("| {} | {} | yes | {:.5g} | {:.3g} | {:.3g} |\n", o.order, o.terms,
                                     o.loo_rmse, o.condition, o.lambda_relative)
@@ -136,10 +150,11 @@ Status FitSessionModel(const Session& session) {
   if (!st.ok()) log->warn("{}", st.error().ToString());
   log->info("model written file={} order={} terms={} loo_rmse={:.5g} time_s={:.2f}", out.string(),
             fit.selection.order, fit.selection.projector.basis.size(), fit.loo_rmse, fit.time_s);
-  std::printf("model: %s (order %d, %d terms, %.1f B/px; leave-one-out RMS error %.4g in %s "
-              "space; %.2f s)\n",
-              out.string().c_str(), fit.selection.order, fit.selection.projector.basis.size(), bpp,
-              fit.loo_rmse, config.process.fit_space.c_str(), fit.time_s);
+  ConsoleLine(stdout, fmt::format("model: {} (order {}, {} terms, {:.1f} B/px; leave-one-out RMS "
+                                  "error {:.4g} {}; {:.2f} s)",
+                                  out.string(), fit.selection.order,
+                                  fit.selection.projector.basis.size(), bpp, fit.loo_rmse,
+                                  FitSpaceUnit(config.process.fit_space), fit.time_s));
   return Ok();
 }
 

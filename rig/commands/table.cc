@@ -21,6 +21,15 @@ const std::vector<Command>& Commands() {
       {"tonemap", "tone-map an HDR image (.exr, .hdr) for a screen", RunTonemap},
       {"collection", "many sessions and .lp captures through a Snakemake workflow: init, report", RunCollection},
       {"view", "write a self-contained WebGL2 relighting page for a model", RunView},
+      {"devices", "list cameras, serial ports and GPIO lines the rig could use", RunDevices},
+      {"jog", "move the lamp arm to one pose (bring-up)", RunJog},
+      {"home", "run the arm's homing cycle, or clear a GRBL alarm lock (bring-up)", RunHome},
+      {"lamp", "switch the lamp on, off, or blink it (bring-up)", RunLamp},
+      {"shot", "one frame at one exposure: histogram, clipping, a suggested bracket (bring-up)", RunShot},
+      {"daemon", "the capture service: job queue, HTTP+JSON API, live status page", RunDaemon},
+      {"status", "what a running 'rig daemon' is doing", RunStatus},
+      {"calibrate-lights", "light directions from chrome spheres: an .lp, a session's [light_frame]", RunCalibrateLights},
+      {"normals", "surface normals and albedo by photometric stereo (EXR + PNG)", RunNormals},
   };
   return kCommands;
 }

@@ -10,7 +10,8 @@
 // symlink to a "virtual" tty; for TIOCMGET/TIOCMSET/TIOCMBIS/TIOCMBIC on a pty slave it
 // keeps the modem bits in a table. Everything else is forwarded to the next definition
 // (libc) through dlsym(RTLD_NEXT). It is linked into the test binaries (rig_test_support)
-// and built as librig_pty_shim.so for LD_PRELOAD; never into the product.
+// and built as librig_pty_shim.so (target rig_pty_shim, installed to lib/rig/) for
+// LD_PRELOAD in front of the installed rig; never linked into rig itself.
 #undef _FORTIFY_SOURCE
 #ifndef _GNU_SOURCE
 #define _GNU_SOURCE

@@ -1,0 +1,108 @@
+// Light directions from reflective (chrome) spheres: the sphere found in the capture (or given),
+// the specular highlight of every image located to sub-pixel precision, reflected into the
+// lamp's direction; and the [light_frame] (offsets, signs, and a tilt it cannot hold) fitted
+// to a rig session's arm angles.
+//
+// Camera models. Orthographic (the default, and the field's usual assumption): the view
+// direction is +z at every pixel, a sphere pixel at (dx, dy) from the centre has the normal
+// (dx / r, -dy / r, sqrt(1 - ...)). Perspective (focal length in pixels, principal point at
+// the image centre): every pixel has its own view ray; the sphere's centre lies on the ray
+// through the circle's centre at the distance its angular radius gives.
+// Either way: L = 2 (N.V) N - V at the highlight, x right, y up, z towards the camera.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "config/config.h"
+#include "config/result.h"
+#include "process/geometry/light_stack.h"
+
+namespace rig {
+
+struct SphereCircle {
+  double cx = 0, cy = 0, r = 0;  // pixels, continuous (pixel (i, j) covers [i, i+1) x [j, j+1))
+};
+
+struct CameraModel {
+  double focal_px = 0;  // 0: orthographic
+  bool perspective() const { return focal_px > 0; }
+  std::string Describe() const;
+};
+
+struct HighlightOptions {
+  // A highlight is a peak this many times above the sphere's median (after subtracting it).
+  double min_contrast = 8;
+  // Its half-maximum blob may cover at most this fraction of the disc (a saturated blob
+  // larger than that is no point lamp's highlight: refused, naming the image).
+  double max_blob_fraction = 0.03;
+  // Finding a sphere automatically asks more of a candidate circle, in 60% of the images: a
+  // peak this many times above the disc's 90th percentile (a glossy object's lobe stands ~30x
+  // above its diffuse, a mirror's far more), with a blob at most this fraction of the disc.
+  double detect_contrast = 50;
+  double detect_blob_fraction = 0.006;
+};
+
+struct Highlight {
+  double x = 0, y = 0;   // sub-pixel image position
+  Vec3 normal{};         // the sphere's normal there
+  Vec3 direction{};      // the lamp direction it reflects
+  int blob_px = 0;       // pixels of the half-maximum blob
+  double blob_fraction = 0;  // of the disc
+  double contrast90 = 0;     // (peak - median) / the disc's 90th percentile
+  bool saturated = false;
+};
+
+// Finds chrome spheres automatically: circles (Hough on the log median image, refined to
+// sub-pixel from radial edge points) that show a sharp highlight in most images. Errors when
+// none is found (naming the capture).
+Result<std::vector<SphereCircle>> DetectChromeSpheres(const LightStack& stack,
+                                                      const HighlightOptions& options = {});
+
+// Refines a circle given roughly (e.g. by the user) to the sphere's edge; returns it unchanged
+// if no clear edge is found.
+SphereCircle RefineCircle(const cv::Mat& median_grey, const SphereCircle& rough);
+
+// The per-pixel median of the stack's grey images (CV_32FC1).
+cv::Mat MedianGrey(const LightStack& stack);
+
+// The highlight of image `k` on the sphere; errors (kInvalidInput) name the image: no
+// highlight, or a saturated blob too large to be one.
+Result<Highlight> LocateHighlight(const LightStack& stack, size_t k, const SphereCircle& sphere,
+                                  const CameraModel& camera, const HighlightOptions& options = {});
+
+struct SphereCalibration {
+  std::vector<SphereCircle> spheres;
+  // per image: the direction (the spheres' mean), and every sphere's highlight
+  std::vector<Vec3> directions;
+  std::vector<std::vector<Highlight>> highlights;  // [image][sphere]
+  std::vector<double> sphere_disagreement_deg;     // per image: largest angle between spheres
+};
+
+// Every image's direction from every sphere. With two or more spheres, images whose spheres
+// disagree by more than `max_disagreement_deg` are an error naming the image.
+Result<SphereCalibration> CalibrateFromSpheres(const LightStack& stack,
+                                               const std::vector<SphereCircle>& spheres,
+                                               const CameraModel& camera,
+                                               const HighlightOptions& options = {},
+                                               double max_disagreement_deg = 3.0);
+
+double AngleDeg(const Vec3& a, const Vec3& b);
+
+// The [light_frame] fitted to commanded angles and measured directions: the signs tried both
+// ways, the offsets by Gauss-Newton; a tilt (rotation of the arm's frame about the camera
+// axis, which [light_frame] cannot hold) fitted beside it to say whether one is there.
+struct LightFrameFit {
+  LightFrameConfig frame;                 // the best offsets and signs (tilt 0)
+  std::vector<double> residual_deg;       // per pose, with `frame`
+  double rms_deg = 0, max_deg = 0;
+  double tilt_deg = 0;                    // with a tilt allowed
+  double rms_with_tilt_deg = 0;
+};
+Result<LightFrameFit> FitLightFrame(const std::vector<double>& h_deg,
+                                    const std::vector<double>& v_deg,
+                                    const std::vector<Vec3>& measured,
+                                    const LightFrameConfig& start = {});
+
+}  // namespace rig

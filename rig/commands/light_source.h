@@ -1,0 +1,27 @@
+// The capture a light command reads (rig calibrate-lights, rig normals): a session's radiance
+// maps with their arm angles, an .lp capture, a folder of images, or a fitted model rendered
+// at a set of directions.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include "config/config.h"
+#include "config/result.h"
+#include "process/geometry/light_stack.h"
+
+namespace rig {
+
+struct LightSource {
+  std::string kind;        // "session", "lp", "images", "model"
+  std::string path;        // the session folder, the .lp, the image folder or the model
+  LightStack stack;
+  std::optional<Config> session_config;  // a session's session.toml
+};
+
+// `positional`: a session folder or a model; `lp`: an .lp file; `images`: a folder of images
+// (no directions known). Exactly one must be given.
+Result<LightSource> LoadLightSource(const std::string& positional, const std::string& lp,
+                                    const std::string& images, int downsample);
+
+}  // namespace rig

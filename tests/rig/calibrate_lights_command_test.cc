@@ -1,0 +1,174 @@
+// `rig calibrate-lights` and `rig normals` on a dry-run session with a chrome and a matte sphere
+// and arm offsets the rig does not know: the directions within 0.5 deg of the simulator's truth,
+// the offsets within 0.2 deg, the normals within 2 deg on unshadowed surfaces, and the refusals.
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <gmock/gmock.h>
+#include <toml++/toml.h>
+#include <gtest/gtest.h>
+
+#include "config/config.h"
+#include "process/geometry/photometric_stereo.h"
+#include "process/geometry/sphere_lights.h"
+#include "process/io/exr_io.h"
+#include "sim/truth.h"
+#include "tests/support/run_rig.h"
+
+namespace rig {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+using testing::RunRig;
+
+class CalibrateLights : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new std::string(testing::FreshTempDir("lights"));
+    const std::string cfg = testing::WriteSimConfig(*dir_, R"([light_frame]
+h_offset_deg = 2.5
+v_offset_deg = -1.5
+[sim]
+scene = 'matte'
+chrome_spheres = 1
+matte_sphere = true
+)");
+    session_ = new std::string(*dir_ + "/S");
+    auto r = RunRig("capture --config " + cfg + " --out " + *session_ + " --dry-run --no-progress");
+    ASSERT_EQ(r.status, 0) << r.output;
+  }
+  static void TearDownTestSuite() {
+    fs::remove_all(*dir_);
+    delete dir_;
+    delete session_;
+  }
+  static std::string* dir_;
+  static std::string* session_;
+};
+std::string* CalibrateLights::dir_ = nullptr;
+std::string* CalibrateLights::session_ = nullptr;
+
+// The fitted offsets and the .lp's directions against the truth, from a run's files.
+void CheckRun(const std::string& calib, double offset_tol, double dir_tol, const char* what) {
+  toml::table t = toml::parse_file(calib + "/light_frame.toml");
+  const double h_off = t["light_frame"]["h_offset_deg"].value_or(1e9);
+  const double v_off = t["light_frame"]["v_offset_deg"].value_or(1e9);
+  auto truth = LoadTruth(calib + "/../truth");
+  ASSERT_TRUE(truth.ok());
+  std::ifstream csv(calib + "/lights.csv");
+  std::string line;
+  std::getline(csv, line);
+  double sum = 0, worst = 0;
+  int n = 0;
+  while (std::getline(csv, line)) {
+    std::stringstream ss(line);
+    std::string pose, f;
+    std::vector<double> v;
+    std::getline(ss, pose, ',');
+    while (std::getline(ss, f, ',')) v.push_back(std::stod(f));
+    ASSERT_EQ(v.size(), 6u);
+    const double e = AngleDeg({v[2], v[3], v[4]}, LightDirection(v[0], v[1], truth->light_frame));
+    sum += e;
+    worst = std::max(worst, e);
+    ++n;
+  }
+  ASSERT_EQ(n, 40);
+  std::printf("dry-run session, %s: offsets h %.3f (truth 2.5), v %.3f (truth -1.5); directions "
+              "mean %.3f deg, max %.3f deg from truth\n", what, h_off, v_off, sum / n, worst);
+  EXPECT_NEAR(h_off, 2.5, offset_tol) << what;
+  EXPECT_NEAR(v_off, -1.5, offset_tol) << what;
+  EXPECT_EQ(t["light_frame"]["h_sign"].value_or(0), 1);
+  EXPECT_EQ(t["light_frame"]["v_sign"].value_or(0), 1);
+  EXPECT_LT(sum / n, dir_tol) << what;
+  EXPECT_LT(worst, dir_tol) << what;
+}
+
+TEST_F(CalibrateLights, RecoversDirectionsAndArmOffsetsFromTheSphere) {
+  // The sphere's true circle, as given: the highlights alone meet the goals (0.5 deg, 0.2 deg).
+  auto truth = LoadTruth(*session_ + "/truth");
+  ASSERT_TRUE(truth.ok());
+  const auto c = truth->scene.CalibrationSpheres()[0];
+  auto g = RunRig(fmt::format("calibrate-lights {} --sphere {},{},{} --as-given --out {}/calib/given.lp",
+                              *session_, c.cx_px, c.cy_px, c.r_px, *session_));
+  ASSERT_EQ(g.status, 0) << g.output;
+  CheckRun(*session_ + "/calib", 0.2, 0.5, "circle given");
+  // Found automatically. Through the camera (noise, JPEG, the merge) the found circle is ~0.4 px
+  // off (on exact radiance it is within 0.1 px, tests/process/lights_test.cc), which costs
+  // ~1.3 deg: the goals are NOT met this way yet (docs/lights.md); what is held here is the
+  // figure measured, so it cannot get worse unnoticed.
+  auto r = RunRig("calibrate-lights " + *session_ + " --force");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("orthographic"));
+  EXPECT_THAT(r.output, HasSubstr("h090_v30"));  // the residual of every pose is printed
+  CheckRun(*session_ + "/calib", 1.6, 2.0, "circle found");
+  // Never overwritten without --force.
+  auto again = RunRig("calibrate-lights " + *session_);
+  EXPECT_EQ(again.status, 2) << again.output;
+  EXPECT_THAT(again.output, HasSubstr("exists"));
+}
+
+TEST_F(CalibrateLights, NormalsOfTheSessionWithinTwoDegreesOnUnshadowedSurfaces) {
+  const std::string out = *dir_ + "/n/normals.exr";
+  auto r = RunRig("normals " + *session_ + " --out " + out + " --height " + *dir_ + "/n/height.exr");
+  ASSERT_EQ(r.status, 0) << r.output;
+  for (const char* f : {"normals.png", "normals-albedo.png", "normals-albedo.exr", "height.exr"})
+    EXPECT_TRUE(fs::exists(*dir_ + "/n/" + f)) << f;
+  auto exr = ReadExr(out);
+  ASSERT_TRUE(exr.ok());
+  // Channels by name (OpenEXR lists them sorted): R = x, G = y, B = z.
+  std::vector<cv::Mat> xyz(3);
+  for (size_t c = 0; c < exr->channel_names.size(); ++c)
+    for (int k = 0; k < 3; ++k)
+      if (exr->channel_names[c] == std::string(1, "RGB"[k])) xyz[k] = exr->channels[c];
+  ASSERT_FALSE(xyz[0].empty() || xyz[1].empty() || xyz[2].empty());
+  cv::Mat n;
+  cv::merge(xyz, n);
+  auto truth = LoadTruth(*session_ + "/truth");
+  ASSERT_TRUE(truth.ok());
+  const SimScene& s = truth->scene;
+  // Unshadowed: lit in every pose; and away from the gloss (the matte sphere, the plane).
+  cv::Mat mask(s.height(), s.width(), CV_8UC1, cv::Scalar(1));
+  for (const Pose& p : truth->poses) {
+    const cv::Mat rho = truth->BrdfAtAngles(p.h_deg, p.v_deg);
+    for (int y = 0; y < rho.rows; ++y)
+      for (int x = 0; x < rho.cols; ++x)
+        if (rho.at<cv::Vec3f>(y, x)[1] <= 0) mask.at<uint8_t>(y, x) = 0;
+  }
+  const cv::Mat ids = s.MaterialIds();
+  for (auto [id, name, goal] : {std::tuple{SimMaterialId::kMatte, "matte sphere", 2.0},
+                                {SimMaterialId::kPlane, "plane", 2.0},
+                                {SimMaterialId::kSphere, "main sphere", 2.0}}) {
+    cv::Mat m = (ids == static_cast<uint8_t>(id)) / 255;
+    m = m.mul(mask);
+    auto e = NormalError(n, s.Normals(), m);
+    std::printf("dry-run session normals, %s (%zu px): mean %.2f deg, p95 %.2f deg\n", name,
+                e.pixels, e.mean_deg, e.p95_deg);
+    EXPECT_GT(e.pixels, 100u);
+    EXPECT_LT(e.mean_deg, goal) << name;
+  }
+  // A second run onto the same file is refused.
+  auto again = RunRig("normals " + *session_ + " --out " + out);
+  EXPECT_EQ(again.status, 2);
+}
+
+TEST_F(CalibrateLights, AMatteSphereGivenAsTheSphereIsRefusedNamingTheImage) {
+  auto truth = LoadTruth(*session_ + "/truth");
+  ASSERT_TRUE(truth.ok());
+  const auto spheres = truth->scene.CalibrationSpheres();
+  ASSERT_EQ(spheres.size(), 2u);
+  const auto& m = spheres[1];
+  auto r = RunRig(fmt::format("calibrate-lights {} --out {}/x.lp --sphere {},{},{}", *session_,
+                              *dir_, m.cx_px, m.cy_px, m.r_px));
+  EXPECT_EQ(r.status, 2) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("no highlight"));
+  EXPECT_THAT(r.output, HasSubstr("h000_v00"));
+  EXPECT_FALSE(fs::exists(*dir_ + "/x.lp"));
+  auto bad = RunRig("calibrate-lights " + *session_ + " --sphere 10,10");
+  EXPECT_EQ(bad.status, 2);
+  EXPECT_THAT(bad.output, HasSubstr("CX,CY,R"));
+}
+
+}  // namespace
+}  // namespace rig
