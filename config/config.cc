@@ -372,6 +372,7 @@ void VisitConfig(Config& c, V& v) {
     v.Field("capture_target", k.capture_target, {"ram", "card"});
     v.Field("delete_from_card", k.delete_from_card);
     v.Field("capture_raw", k.capture_raw);
+    v.Field("format", k.format, {"jpeg", "raw+jpeg", "raw"});
     v.Field("linear", k.linear);
     v.Field("retries", k.retries, Range{0, 100});
     v.Field("retry_backoff_s", k.retry_backoff_s, Range{0, 600});

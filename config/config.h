@@ -37,7 +37,10 @@ struct CameraConfig {
   std::string iso, aperture, white_balance;  // fixed where the body offers them; empty: leave
   std::string capture_target = "ram";  // "ram" | "card"
   bool delete_from_card = true;
-  bool capture_raw = false;            // RAW+JPEG pairs
+  bool capture_raw = false;            // RAW+JPEG pairs (the same as format = "raw+jpeg")
+  // "jpeg": process the camera's JPEGs; "raw+jpeg": store both, process the RAW files;
+  // "raw": RAW only. RAW frames are decoded by LibRaw to linear values (no response recovery).
+  std::string format = "jpeg";
   bool linear = false;                 // frames are linear: skip response recovery
   int retries = 3;                     // per capture, for transient faults
   double retry_backoff_s = 0.5;        // first back-off; doubles each retry
@@ -45,6 +48,11 @@ struct CameraConfig {
   double capture_deadline_s = 120;     // one whole capture including retries
   double exif_tolerance = 0.1;         // relative mismatch of EXIF vs applied exposure
 };
+
+// Whether the body is asked for RAW files (capture_raw, or a format with "raw"), and whether
+// processing uses them (format "raw" or "raw+jpeg"; capture_raw alone only stores them).
+inline bool CapturesRaw(const CameraConfig& c) { return c.capture_raw || c.format != "jpeg"; }
+inline bool ProcessesRaw(const CameraConfig& c) { return c.format != "jpeg"; }
 
 struct GrblConfig {
   std::string h_axis = "X", v_axis = "Y";

@@ -10,6 +10,7 @@
 #include <set>
 
 #include "capture/plan/bracket.h"
+#include "process/io/raw_io.h"
 #include "config/log.h"
 #include "capture/daemon/progress.h"
 #include "capture/devices/signals.h"
@@ -57,6 +58,12 @@ std::string ExtensionOf(const nlohmann::json& rec) {
 
 // The extensions the processor merges (RAW files are stored, not merged).
 bool IsImage(const std::string& ext) { return ext == "jpg" || ext == "png" || ext == "tif"; }
+
+// The files of a frame processing reads: the RAW file where the session processes RAW, the
+// camera's rendered image otherwise.
+bool IsProcessed(const CameraConfig& camera, const std::string& ext) {
+  return ProcessesRaw(camera) ? IsRawPath("x." + ext) : IsImage(ext);
+}
 
 }  // namespace
 
@@ -253,7 +260,7 @@ Status CaptureDaemon::OpenDevices(RunState& run) {
   run.lamp_open = true;
 
   CameraSettings wanted_settings{cc.iso, cc.aperture, cc.white_balance, cc.capture_target,
-                                 cc.capture_raw};
+                                 CapturesRaw(cc)};
   auto applied = camera_.Configure(wanted_settings);
   if (!applied.ok()) return Fault(run, applied.error(), camera_.Describe());
   return Ok();
@@ -320,7 +327,7 @@ void CaptureDaemon::StartProcessing(RunState& run) {
     BracketJob job{p, {}, {}, {}};
     for (int i = 0; i < run.n_exp; ++i) {
       for (const auto& f : run.stored[p.Name()][i]) {
-        if (!IsImage(ExtensionOf(f.record))) continue;
+        if (!IsProcessed(session_.config().camera, ExtensionOf(f.record))) continue;
         job.files.push_back(layout.root / f.record.at("file").get<std::string>());
         job.exposures_s.push_back(f.record.at("exposure_s").get<double>());
       }
@@ -478,7 +485,7 @@ Status CaptureDaemon::StoreFiles(RunState& run, const Pose& pose, int index, dou
       run.sum.storage_error = rec.error().Within("pose " + name).ToString();
       return rec.error().Within("pose " + name);
     }
-    if (IsImage(file.extension))
+    if (IsProcessed(session_.config().camera, file.extension))
       fresh[index] = {session_.layout().root / (*rec)["file"].get<std::string>(),
                       std::move(file.bytes)};
   }
@@ -497,7 +504,7 @@ void CaptureDaemon::HandOff(RunState& run, const Pose& pose, FreshImages& fresh)
       job.bytes.push_back(std::move(f->second.second));
     } else {
       for (const auto& s : run.stored[name][i]) {
-        if (!IsImage(ExtensionOf(s.record))) continue;
+        if (!IsProcessed(session_.config().camera, ExtensionOf(s.record))) continue;
         job.files.push_back(session_.layout().root / s.record.at("file").get<std::string>());
         job.bytes.emplace_back();
       }

@@ -1,5 +1,6 @@
 // Session processing: response once per session, then a radiance map per pose.
 #include "capture/daemon/processor.h"
+#include "process/io/raw_io.h"
 
 #include <chrono>
 
@@ -37,7 +38,10 @@ Result<std::vector<BracketJob>> CompleteBrackets(const Session& session) {
     } else if (ev == "frame") {
       const std::string file_ext = fs::path(r.value("file", "")).extension().string();
       std::string ext = r.value("ext", file_ext.empty() ? std::string() : file_ext.substr(1));
-      if (!IsImageExtension(ext)) continue;  // RAW files travel beside their JPEG
+      // The files processing reads: RAW where the session processes RAW, else the rendered
+      // image (RAW files travel beside their JPEG).
+      if (ProcessesRaw(session.config().camera) ? !IsRawPath("x." + ext) : !IsImageExtension(ext))
+        continue;
       std::string pose = r.at("pose").get<std::string>();
       if (frames.find(pose) == frames.end()) order.push_back(pose);
       frames[pose][r.at("index").get<int>()] = r;
@@ -121,6 +125,12 @@ bool HdrStage::EnsureResponse(bool force) {
   if (response_) return true;
   if (recovery_failed_) return false;
   auto log = Log("process");
+  if (ProcessesRaw(config_.camera)) {
+    response_ = LinearResponse(65536);  // LibRaw's linear 16-bit values
+    summary_.response_id = response_->id;
+    log->info("RAW frames are linear: no response recovery");
+    return true;
+  }
   if (config_.camera.linear) {
     response_ = LinearResponse(256);
     summary_.response_id = response_->id;
