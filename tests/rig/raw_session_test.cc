@@ -54,6 +54,9 @@ TEST(RawSession, StoresDngBesideJpegAndMergesTheRawFramesLinearly) {
   const std::string dir = testing::FreshTempDir("raw_session");
   const std::string grid =
       "[sim]\nwidth = 96\nheight = 72\n[grid]\nh_min_deg = 20\nh_max_deg = 40\nv_max_deg = 10\n";
+  // WriteSimConfig writes into an existing folder: make the two config folders first.
+  fs::create_directories(dir + "/raw");
+  fs::create_directories(dir + "/jpg");
   const std::string raw_cfg =
       testing::WriteSimConfig(dir + "/raw", grid + "[camera]\nformat = \"raw+jpeg\"\n");
   const std::string jpg_cfg = testing::WriteSimConfig(dir + "/jpg", grid);
@@ -104,6 +107,7 @@ TEST(RawSession, RawOnlyStoresNoJpegAndAnUnknownFormatIsRefused) {
   EXPECT_EQ(Count(fs::path(dir) / "S" / "frames", ".jpg"), 0);
   EXPECT_EQ(Count(fs::path(dir) / "S" / "frames", ".dng"), 2 * 7);
   EXPECT_EQ(Count(fs::path(dir) / "S" / "hdr", ".exr"), 2);
+  fs::create_directories(dir + "/bad");
   const std::string bad = testing::WriteSimConfig(dir + "/bad", "[camera]\nformat = \"tiff\"\n");
   auto b = RunRig("check-config " + bad);
   EXPECT_EQ(b.status, 2) << b.output;
