@@ -300,7 +300,7 @@ cv::Mat SimCamera::Expose(const cv::Mat& radiance, Seconds exposure, uint64_t no
 
 Result<std::vector<uint8_t>> SimCamera::EncodeRaw(const cv::Mat& raw_dn, Seconds exposure) const {
   DngOptions o;
-  o.mosaic = true;
+  o.mosaic = false;  // LinearRaw: see Configure() in sim_camera.h
   o.black = kRawBlack;
   o.white = kRawWhite;
   o.exposure_s = exposure.count();

@@ -109,8 +109,11 @@ class SimCamera final : public Camera {
   // ThirdStopShutterSpeeds(shutter_min_s, shutter_max_s).
   Result<std::vector<Seconds>> ShutterSpeeds() override;
   // Fixed ISO "100", aperture "8", white balance "Daylight"; RAW+JPEG when asked (the RAW
-  // file a DNG: 14-bit linear sensor values, Bayer RGGB, black level kRawBlack, white level
-  // kRawWhite, from the same electrons and noise as the JPEG); both capture targets alike.
+  // file a DNG: 14-bit linear sensor values, three per pixel (LinearRaw), black level kRawBlack,
+  // white level kRawWhite, from the same electrons and noise as the JPEG). Not Bayer: the
+  // scene is rendered with three values per pixel, and mosaicking it only to have LibRaw
+  // interpolate it back measured demosaicing, not the merge (log-radiance RMS 0.34 against
+  // 0.02 on 96x72 frames); LibRaw's Bayer path is tested on its own in tests/process/); both capture targets alike.
   Result<CameraSettings> Configure(const CameraSettings& wanted) override;
   // Refuses (kInvalidInput) an exposure that is not one of ShutterSpeeds(). The frame's
   // exposure and exif_exposure are the offered value. Renders the world as it is when the
