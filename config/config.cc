@@ -359,6 +359,7 @@ void VisitConfig(Config& c, V& v) {
     v.Field("center_s", b.center_s, Range{0, 3600});
     v.Field("ev_step", b.ev_step, Range{0.1, 6});
     v.Field("count", b.count, Range{0, 64});
+    v.Field("mode", b.mode, {"fixed", "adaptive"});
   });
   section("camera", true, [&] {
     auto& k = c.camera;

@@ -29,6 +29,11 @@ struct BracketConfig {
   double center_s = 0;                   // else: centre exposure time
   double ev_step = 1.0;                  //       spacing in stops
   int count = 0;                         //       number of exposures
+  // "fixed": every pose gets the bracket above. "adaptive": each pose is metered with one
+  // frame at the bracket's centre exposure and gets only the exposures its radiance range
+  // needs (capture/plan/adaptive_bracket.h), never longer than the bracket's longest; the
+  // plan is journaled per pose before its frames are taken (docs/brackets.md).
+  std::string mode = "fixed";
 };
 
 struct CameraConfig {
