@@ -285,6 +285,54 @@ TEST(AdaptiveSession, SigkillPlacedByProgressThenResumeKeepsThePlansAndTheBytes)
   EXPECT_EQ(maps, 8);
 }
 
+// A kill between a pose's metering frame and its plan (rare for kills placed by progress):
+// the journal cut there, resume plans the pose from the stored metering frame and ends with
+// the uninterrupted run's plan and bytes.
+TEST(AdaptiveSession, ResumeAfterTheMeteringFrameBeforeThePlanPlansFromTheStoredFrame) {
+  const std::string dir = testing::FreshTempDir("adaptive_metered");
+  const std::string cfg = Config(dir, true);
+  const fs::path S = fs::path(dir) / "S", C = fs::path(dir) / "clean";
+  auto c = RunRig("capture --config " + cfg + " --out " + C.string() + " --dry-run --no-progress");
+  ASSERT_EQ(c.status, 0) << c.output;
+  auto r = RunRig("capture --config " + cfg + " --out " + S.string() + " --dry-run --no-progress --no-process");
+  ASSERT_EQ(r.status, 0) << r.output;
+  // Keep the journal up to and including the third pose's metering frame record.
+  std::vector<std::string> lines;
+  std::string cut_pose;
+  {
+    std::ifstream in(S / "journal.jsonl");
+    std::string line;
+    int metering = 0;
+    while (std::getline(in, line)) {
+      lines.push_back(line);
+      auto j = nlohmann::json::parse(line);
+      if (j["event"] == "frame" && j["index"] == 0 && ++metering == 3) {
+        cut_pose = j["pose"];
+        break;
+      }
+    }
+  }
+  ASSERT_FALSE(cut_pose.empty());
+  {
+    std::ofstream out(S / "journal.jsonl", std::ios::trunc);
+    for (const auto& l : lines) out << l << "\n";
+  }
+  ASSERT_EQ(PosePlans(S).count(cut_pose), 0u);
+  auto res = RunRig("resume " + S.string() + " --no-progress");
+  ASSERT_EQ(res.status, 0) << res.output;
+  const auto plans = PosePlans(S), clean_plans = PosePlans(C);
+  ASSERT_EQ(plans.size(), 8u);
+  ASSERT_EQ(plans.at(cut_pose).size(), 1u);
+  EXPECT_EQ(plans.at(cut_pose)[0]["exposures_s"], clean_plans.at(cut_pose)[0]["exposures_s"]);
+  EXPECT_EQ(plans.at(cut_pose)[0]["reasons"], clean_plans.at(cut_pose)[0]["reasons"]);
+  // The metering frame was verified and kept, not taken again.
+  int metering_records = 0;
+  for (const auto& f : Events(S, "frame"))
+    metering_records += f["pose"] == cut_pose && f["index"] == 0;
+  EXPECT_EQ(metering_records, 1);
+  EXPECT_EQ(Frames(S), Frames(C));
+}
+
 TEST(AdaptiveSession, ResumeRefusesAStoredFrameThatContradictsItsPosesPlan) {
   const std::string dir = testing::FreshTempDir("adaptive_contradict");
   const std::string cfg = Config(dir, true);
