@@ -359,6 +359,7 @@ void VisitConfig(Config& c, V& v) {
     v.Field("center_s", b.center_s, Range{0, 3600});
     v.Field("ev_step", b.ev_step, Range{0.1, 6});
     v.Field("count", b.count, Range{0, 64});
+    v.Field("mode", b.mode, {"fixed", "adaptive"});
   });
   section("camera", true, [&] {
     auto& k = c.camera;
@@ -372,6 +373,7 @@ void VisitConfig(Config& c, V& v) {
     v.Field("capture_target", k.capture_target, {"ram", "card"});
     v.Field("delete_from_card", k.delete_from_card);
     v.Field("capture_raw", k.capture_raw);
+    v.Field("format", k.format, {"jpeg", "raw+jpeg", "raw"});
     v.Field("linear", k.linear);
     v.Field("retries", k.retries, Range{0, 100});
     v.Field("retry_backoff_s", k.retry_backoff_s, Range{0, 600});

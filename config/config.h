@@ -29,6 +29,11 @@ struct BracketConfig {
   double center_s = 0;                   // else: centre exposure time
   double ev_step = 1.0;                  //       spacing in stops
   int count = 0;                         //       number of exposures
+  // "fixed": every pose gets the bracket above. "adaptive": each pose is metered with one
+  // frame at the bracket's centre exposure and gets only the exposures its radiance range
+  // needs (capture/plan/adaptive_bracket.h), never longer than the bracket's longest; the
+  // plan is journaled per pose before its frames are taken (docs/brackets.md).
+  std::string mode = "fixed";
 };
 
 struct CameraConfig {
@@ -37,7 +42,10 @@ struct CameraConfig {
   std::string iso, aperture, white_balance;  // fixed where the body offers them; empty: leave
   std::string capture_target = "ram";  // "ram" | "card"
   bool delete_from_card = true;
-  bool capture_raw = false;            // RAW+JPEG pairs
+  bool capture_raw = false;            // RAW+JPEG pairs (the same as format = "raw+jpeg")
+  // "jpeg": process the camera's JPEGs; "raw+jpeg": store both, process the RAW files;
+  // "raw": RAW only. RAW frames are decoded by LibRaw to linear values (no response recovery).
+  std::string format = "jpeg";
   bool linear = false;                 // frames are linear: skip response recovery
   int retries = 3;                     // per capture, for transient faults
   double retry_backoff_s = 0.5;        // first back-off; doubles each retry
@@ -45,6 +53,11 @@ struct CameraConfig {
   double capture_deadline_s = 120;     // one whole capture including retries
   double exif_tolerance = 0.1;         // relative mismatch of EXIF vs applied exposure
 };
+
+// Whether the body is asked for RAW files (capture_raw, or a format with "raw"), and whether
+// processing uses them (format "raw" or "raw+jpeg"; capture_raw alone only stores them).
+inline bool CapturesRaw(const CameraConfig& c) { return c.capture_raw || c.format != "jpeg"; }
+inline bool ProcessesRaw(const CameraConfig& c) { return c.format != "jpeg"; }
 
 struct GrblConfig {
   std::string h_axis = "X", v_axis = "Y";

@@ -1,5 +1,6 @@
 // The simulated camera: response curves, the sensor model, encoding, faults and latency.
 #include "sim/sim_camera.h"
+#include "sim/dng_writer.h"
 
 #include <algorithm>
 #include <limits>
@@ -203,7 +204,9 @@ SimCamera::SimCamera(const Config& config, std::shared_ptr<SimWorld> world, SimS
       scene_(std::move(scene)),
       response_(std::move(response)),
       speeds_(ThirdStopShutterSpeeds(Seconds(config.sim.camera.shutter_min_s),
-                                     Seconds(config.sim.camera.shutter_max_s))) {}
+                                     Seconds(config.sim.camera.shutter_max_s))),
+      raw_only_(config.camera.format == "raw"),
+      capture_raw_(raw_only_) {}
 
 std::string SimCamera::Describe() const {
   return fmt::format("sim camera {}x{} scene {} seed {} response {} {}", sim_.width, sim_.height,
@@ -228,7 +231,9 @@ Result<CameraSettings> SimCamera::Configure(const CameraSettings& wanted) {
   applied.iso = "100";
   applied.aperture = "8";
   applied.white_balance = "Daylight";
-  applied.capture_raw = false;
+  applied.capture_raw = wanted.capture_raw || raw_only_;
+  std::lock_guard<std::mutex> lock(mu_);
+  capture_raw_ = applied.capture_raw;
   return applied;
 }
 
@@ -252,7 +257,8 @@ std::optional<Error> SimCamera::FaultAt(int64_t n) const {
   return std::nullopt;
 }
 
-cv::Mat SimCamera::Expose(const cv::Mat& radiance, Seconds exposure, uint64_t noise_seed) const {
+cv::Mat SimCamera::Expose(const cv::Mat& radiance, Seconds exposure, uint64_t noise_seed,
+                          cv::Mat* raw_dn) const {
   RIG_CHECK(radiance.type() == CV_32FC3, "radiance must be CV_32FC3");
   cv::Mat out(radiance.rows, radiance.cols, CV_8UC3);
   const auto& k = sim_.camera;
@@ -261,6 +267,8 @@ cv::Mat SimCamera::Expose(const cv::Mat& radiance, Seconds exposure, uint64_t no
   const bool shot = k.shot_noise;
   const float read_var = static_cast<float>(k.read_noise_e * k.read_noise_e);
   const bool noisy = shot || read_var > 0;
+  const float inv_e_per_dn = static_cast<float>(1.0 / RawElectronsPerDn());
+  if (raw_dn) raw_dn->create(radiance.rows, radiance.cols, CV_16UC3);
   const auto& normal = NormalTable();
   uint64_t state = Mix(noise_seed);
   uint64_t bits = 0;
@@ -268,6 +276,7 @@ cv::Mat SimCamera::Expose(const cv::Mat& radiance, Seconds exposure, uint64_t no
   for (int j = 0; j < radiance.rows; ++j) {
     const float* in = radiance.ptr<float>(j);
     uint8_t* o = out.ptr<uint8_t>(j);
+    uint16_t* raw = raw_dn ? raw_dn->ptr<uint16_t>(j) : nullptr;
     for (int i = 0; i < 3 * radiance.cols; ++i) {
       float e = in[i] * to_e;
       if (noisy) {
@@ -282,9 +291,23 @@ cv::Mat SimCamera::Expose(const cv::Mat& radiance, Seconds exposure, uint64_t no
         e += std::sqrt((shot ? std::max(e, 0.f) : 0.f) + read_var) * n;
       }
       o[i] = response_.Quantize(i % 3, e * inv_fw);
+      if (raw) raw[i] = static_cast<uint16_t>(std::clamp(std::lround(e * inv_e_per_dn) + kRawBlack,
+                                                         0L, long(kRawWhite)));
     }
   }
   return out;
+}
+
+Result<std::vector<uint8_t>> SimCamera::EncodeRaw(const cv::Mat& raw_dn, Seconds exposure) const {
+  DngOptions o;
+  o.mosaic = false;  // LinearRaw: see Configure() in sim_camera.h
+  o.black = kRawBlack;
+  o.white = kRawWhite;
+  o.exposure_s = exposure.count();
+  o.model = "rig simulator";
+  auto bytes = EncodeDng(raw_dn, o);
+  if (!bytes.ok()) return DeviceError(ErrorCode::kInternal, "RAW encoding failed: " + bytes.error().ToString());
+  return bytes;
 }
 
 Result<std::vector<uint8_t>> SimCamera::Encode(const cv::Mat& bgr8) const {
@@ -347,8 +370,15 @@ Result<CapturedFrame> SimCamera::Capture(Seconds exposure) {
   const uint64_t noise_seed =
       Mix(Mix(Mix(static_cast<uint64_t>(sim_.seed)) ^ micro(state.h_deg)) ^ micro(state.v_deg)) ^
       speed_index;
-  cv::Mat image = Expose(radiance, t, noise_seed);
-  RIG_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, Encode(image));
+  cv::Mat raw_dn;
+  cv::Mat image = Expose(radiance, t, noise_seed, capture_raw_ ? &raw_dn : nullptr);
+  std::vector<uint8_t> bytes, raw_bytes;
+  if (!raw_only_) {
+    RIG_ASSIGN_OR_RETURN(bytes, Encode(image));
+  }
+  if (capture_raw_) {
+    RIG_ASSIGN_OR_RETURN(raw_bytes, EncodeRaw(raw_dn, t));
+  }
 
   if (sim_.latency_scale > 0) {
     const Seconds wait = (t + Seconds(sim_.camera.download_time_s)) * sim_.latency_scale;
@@ -362,7 +392,8 @@ Result<CapturedFrame> SimCamera::Capture(Seconds exposure) {
   CapturedFrame frame;
   frame.exposure = t;
   frame.exif_exposure = t;
-  frame.files.push_back({sim_.camera.format, std::move(bytes)});
+  if (!raw_only_) frame.files.push_back({sim_.camera.format, std::move(bytes)});
+  if (capture_raw_) frame.files.push_back({"dng", std::move(raw_bytes)});
   return frame;
 }
 

@@ -3,13 +3,21 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <functional>
 #include <map>
 #include <optional>
 #include <set>
 
+#include <fmt/ranges.h>
+
+#include "capture/daemon/metering.h"
+#include "capture/plan/adaptive_bracket.h"
 #include "capture/plan/bracket.h"
+#include "process/io/image_io.h"
+#include "process/io/raw_io.h"
 #include "config/log.h"
 #include "capture/daemon/progress.h"
 #include "capture/devices/signals.h"
@@ -58,6 +66,12 @@ std::string ExtensionOf(const nlohmann::json& rec) {
 // The extensions the processor merges (RAW files are stored, not merged).
 bool IsImage(const std::string& ext) { return ext == "jpg" || ext == "png" || ext == "tif"; }
 
+// The files of a frame processing reads: the RAW file where the session processes RAW, the
+// camera's rendered image otherwise.
+bool IsProcessed(const CameraConfig& camera, const std::string& ext) {
+  return ProcessesRaw(camera) ? IsRawPath("x." + ext) : IsImage(ext);
+}
+
 }  // namespace
 
 std::string CaptureSummary::ToString() const {
@@ -103,6 +117,11 @@ struct CaptureDaemon::RunState {
   bool lamp_open = false, motor_open = false;  // what Park() must switch off and stop
   std::vector<double> exposures;              // the session's bracket, seconds
   int n_exp = 0;                              // exposures.size()
+  bool adaptive = false;                      // bracket.mode = "adaptive"
+  std::vector<Seconds> offered;               // the body's shutter speeds (adaptive plans)
+  // Adaptive: each pose's journaled plan (bracket index -> exposure, seconds). A pose with a
+  // plan keeps it for good; a pose without one is metered first.
+  std::map<std::string, std::vector<double>> pose_plans;
   int already = 0;                            // frames stored and verified before this run
   std::optional<BracketProcessor> processor;
   std::optional<Progress> progress;
@@ -116,6 +135,29 @@ struct CaptureDaemon::RunState {
     for (const auto& f : i->second)
       if (!f.verified) return false;
     return true;
+  }
+
+  // The exposures of `pose`, by bracket index: its journaled plan (adaptive), the session's
+  // bracket (fixed), or nothing yet (adaptive, not yet metered).
+  const std::vector<double>* ExposuresOf(const std::string& pose) const {
+    if (!adaptive) return &exposures;
+    auto p = pose_plans.find(pose);
+    return p == pose_plans.end() ? nullptr : &p->second;
+  }
+  // Every frame of `pose` is stored and verified (an unplanned adaptive pose is not).
+  bool PoseDone(const std::string& pose) const {
+    const std::vector<double>* e = ExposuresOf(pose);
+    if (!e) return false;
+    for (int i = 0; i < static_cast<int>(e->size()); ++i)
+      if (!IndexDone(pose, i)) return false;
+    return true;
+  }
+  // The bracket index and exposure of an adaptive pose's metering frame: index 0, the fixed
+  // bracket's centre exposure.
+  double MeteringExposure() const {
+    std::vector<double> e = exposures;
+    std::sort(e.begin(), e.end());
+    return e[e.size() / 2];
   }
 };
 
@@ -173,6 +215,10 @@ void CaptureDaemon::ReadJournal(RunState& run) {
     std::string ev = r.value("event", "");
     if (ev == "plan") run.plan_record = r;
     if (ev == "capture_done") run.was_done = true;
+    // The first plan journaled for a pose stands (a pose is never planned twice).
+    if (ev == "pose_plan")
+      run.pose_plans.emplace(r.at("pose").get<std::string>(),
+                             r.at("exposures_s").get<std::vector<double>>());
     if (ev != "frame") continue;
     auto& files = run.stored[r.at("pose").get<std::string>()][r.at("index").get<int>()];
     // A later record for the same file supersedes an earlier one (a redone frame).
@@ -253,7 +299,7 @@ Status CaptureDaemon::OpenDevices(RunState& run) {
   run.lamp_open = true;
 
   CameraSettings wanted_settings{cc.iso, cc.aperture, cc.white_balance, cc.capture_target,
-                                 cc.capture_raw};
+                                 CapturesRaw(cc)};
   auto applied = camera_.Configure(wanted_settings);
   if (!applied.ok()) return Fault(run, applied.error(), camera_.Describe());
   return Ok();
@@ -273,24 +319,72 @@ Status CaptureDaemon::Plan(RunState& run) {
   if (std::set<std::string>(pose_names.begin(), pose_names.end()).size() != pose_names.size())
     return MakeError(ErrorCode::kInvalidInput, "grid",
                      "two poses of the grid have the same name; use a coarser step");
+  const std::string& mode = session_.config().bracket.mode;
+  run.adaptive = mode == "adaptive";
+  run.offered = *speeds;
   if (run.plan_record) {
     RIG_TRY(CheckPlan(run, pose_names));
   } else {
+    // Adaptive: "exposures_s" is the fixed bracket the metering and the plans' longest
+    // exposure derive from; each pose's own exposures follow in its "pose_plan" record.
     RIG_TRY(session_.journal().Append({{"event", "plan"}, {"poses", pose_names},
                                        {"exposures_s", run.exposures},
+                                       {"bracket_mode", mode},
                                        {"camera", camera_.Describe()},
                                        {"motor", motor_.Describe()}, {"lamp", lamp_.Describe()}}));
   }
   run.n_exp = static_cast<int>(run.exposures.size());
+  RIG_TRY(CheckStoredAgainstPlans(run));
   run.sum.poses = static_cast<int>(run.poses.size());
-  run.sum.frames = run.sum.poses * run.n_exp;
-  for (const auto& p : run.poses)
-    for (int i = 0; i < run.n_exp; ++i) run.already += run.IndexDone(p.Name(), i) ? 1 : 0;
+  // Adaptive: a pose not yet metered counts as the fixed bracket's length until its plan is
+  // journaled.
+  run.sum.frames = 0;
+  for (const auto& p : run.poses) {
+    const std::vector<double>* e = run.ExposuresOf(p.Name());
+    const int n = e ? static_cast<int>(e->size()) : run.n_exp;
+    run.sum.frames += n;
+    for (int i = 0; i < (e ? n : 1); ++i) run.already += run.IndexDone(p.Name(), i) ? 1 : 0;
+  }
   run.sum.frames_verified = run.already;
   Log("session")->info(
-      "plan poses={} exposures={} frames={} already_stored={} camera=\"{}\" motor=\"{}\"",
-      run.poses.size(), run.n_exp, run.sum.frames, run.already, camera_.Describe(),
+      "plan poses={} bracket={} exposures={} frames={} already_stored={} camera=\"{}\" "
+      "motor=\"{}\"",
+      run.poses.size(), mode, run.n_exp, run.sum.frames, run.already, camera_.Describe(),
       motor_.Describe());
+  return Ok();
+}
+
+// Adaptive, on resume: every stored frame must be the one its pose's journaled plan asks for
+// at its index (a pose not yet planned holds at most its metering frame). A frame that is not
+// is refused, never redone over: the journal and the frames disagree, and nothing stored is
+// touched until someone looks.
+Status CaptureDaemon::CheckStoredAgainstPlans(RunState& run) {
+  if (!run.adaptive) return Ok();
+  const std::string journal = session_.layout().journal().string();
+  for (const auto& [pose, by_index] : run.stored) {
+    const std::vector<double>* plan = run.ExposuresOf(pose);
+    for (const auto& [index, files] : by_index) {
+      for (const auto& f : files) {
+        const double t = f.record.at("exposure_s").get<double>();
+        const std::string file = f.record.value("file", "");
+        if (plan == nullptr && index != 0)
+          return MakeError(ErrorCode::kInvalidInput, journal,
+                           "pose {}: frame {} ({}) is stored, but the pose has no journaled plan",
+                           pose, index, file);
+        const double want = plan ? (index < static_cast<int>(plan->size())
+                                        ? (*plan)[static_cast<size_t>(index)]
+                                        : -1.0)
+                                 : run.MeteringExposure();
+        if (std::fabs(t - want) > 1e-9 * std::max(t, want))
+          return MakeError(ErrorCode::kInvalidInput, journal,
+                           "pose {}: frame {} ({}) was taken at {:.6g} s, but the pose's journaled "
+                           "plan {}",
+                           pose, index, file, t,
+                           want < 0 ? fmt::format("has only {} frames", plan->size())
+                                    : fmt::format("asks for {:.6g} s", want));
+      }
+    }
+  }
   return Ok();
 }
 
@@ -305,6 +399,12 @@ Status CaptureDaemon::CheckPlan(RunState& run, const std::vector<std::string>& p
     return MakeError(ErrorCode::kInvalidInput, camera_.Describe(),
                      "the camera now offers a different bracket than the session started with");
   run.exposures = before;  // the session's bracket stands
+  const std::string mode = plan["bracket_mode"].is_string() ? plan["bracket_mode"].get<std::string>()
+                                                             : std::string("fixed");
+  if (mode != session_.config().bracket.mode)
+    return MakeError(ErrorCode::kInvalidInput, session_.layout().journal().string(),
+                     "the journal's plan has bracket mode '{}', session.toml '{}'", mode,
+                     session_.config().bracket.mode);
   return Ok();
 }
 
@@ -314,13 +414,12 @@ void CaptureDaemon::StartProcessing(RunState& run) {
   const SessionLayout& layout = session_.layout();
   if (options_.process) run.processor.emplace(layout, session_.config());
   for (const auto& p : run.poses) {
-    bool complete = true;
-    for (int i = 0; i < run.n_exp; ++i) complete = complete && run.IndexDone(p.Name(), i);
-    if (!complete || fs::exists(layout.Hdr(p.Name()))) continue;
+    if (!run.PoseDone(p.Name()) || fs::exists(layout.Hdr(p.Name()))) continue;
     BracketJob job{p, {}, {}, {}};
-    for (int i = 0; i < run.n_exp; ++i) {
+    const int n = static_cast<int>(run.ExposuresOf(p.Name())->size());
+    for (int i = 0; i < n; ++i) {
       for (const auto& f : run.stored[p.Name()][i]) {
-        if (!IsImage(ExtensionOf(f.record))) continue;
+        if (!IsProcessed(session_.config().camera, ExtensionOf(f.record))) continue;
         job.files.push_back(layout.root / f.record.at("file").get<std::string>());
         job.exposures_s.push_back(f.record.at("exposure_s").get<double>());
       }
@@ -335,7 +434,9 @@ void CaptureDaemon::StartProcessing(RunState& run) {
 // and on resume alike: a machine without limit switches cannot home, and must still resume.
 Status CaptureDaemon::Home(RunState& run) {
   const MotorConfig& mc = session_.config().motor;
-  if (run.already >= run.sum.frames) return Ok();
+  bool all_done = true;
+  for (const auto& p : run.poses) all_done = all_done && run.PoseDone(p.Name());
+  if (all_done) return Ok();
   if (!mc.home_on_start) {
     if (run.plan_record)
       Log("session")->info("resume without homing (motor.home_on_start = false): the controller's "
@@ -359,24 +460,96 @@ Status CaptureDaemon::Home(RunState& run) {
 Status CaptureDaemon::VisitPose(RunState& run, const Pose& pose) {
   const std::string name = pose.Name();
   run.current_pose = name;
-  std::vector<int> missing;
-  for (int i = 0; i < run.n_exp; ++i)
-    if (!run.IndexDone(name, i)) missing.push_back(i);
-  if (missing.empty()) return Ok();
+  if (run.PoseDone(name)) return Ok();
   if (StopRequested()) return Interrupted(run);
   RIG_TRY(MoveTo(run, pose));
   RIG_TRY(Settle(run));
   RIG_TRY(LampOn(run));
   FreshImages fresh;
-  for (int index : missing) {
+  // Adaptive, a pose without a journaled plan: meter it and journal its plan first.
+  if (!run.ExposuresOf(name)) RIG_TRY(MeterAndPlan(run, pose, fresh));
+  const std::vector<double> exposures = *run.ExposuresOf(name);
+  for (int index = 0; index < static_cast<int>(exposures.size()); ++index) {
+    if (run.IndexDone(name, index) || fresh.count(index)) continue;
     // A stop between frames: the frame in hand was finished and stored.
     if (StopRequested()) return Interrupted(run);
-    RIG_TRY(CaptureFrame(run, pose, index, fresh));
+    RIG_TRY(CaptureFrame(run, pose, index, exposures[static_cast<size_t>(index)], fresh));
   }
   RIG_TRY(LampOff(run));
   RIG_TRY(session_.journal().Append({{"event", "pose_done"}, {"pose", name}}));
   if (options_.progress) run.progress->PoseDone(name);
   HandOff(run, pose, fresh);
+  return Ok();
+}
+
+// Adaptive: takes (or reads back) the pose's metering frame, bracket index 0 at the fixed
+// bracket's centre exposure, plans the pose's exposures from it, and journals the plan with
+// the reason for each frame before any planned frame is taken.
+Status CaptureDaemon::MeterAndPlan(RunState& run, const Pose& pose, FreshImages& fresh) {
+  const std::string name = pose.Name();
+  const CameraConfig& cc = session_.config().camera;
+  const double t_m = run.MeteringExposure();
+  if (!run.IndexDone(name, 0)) {
+    if (StopRequested()) return Interrupted(run);
+    RIG_TRY(CaptureFrame(run, pose, 0, t_m, fresh));
+  }
+  // The metering frame's processed file: the bytes in hand, or the stored file read back
+  // (a resumed pose metered before the kill plans from the same bytes, so the same plan).
+  std::vector<uint8_t> bytes;
+  std::string file;
+  if (auto f = fresh.find(0); f != fresh.end()) {
+    bytes = f->second.second;
+    file = f->second.first.string();
+  } else {
+    for (const auto& s : run.stored[name][0]) {
+      if (!IsProcessed(cc, ExtensionOf(s.record))) continue;
+      const std::string rel = s.record.at("file").get<std::string>();
+      auto read = ReadSessionFile(session_.layout().root, rel);
+      if (!read.ok()) return read.error().Within("pose " + name);
+      bytes = std::move(read).value();
+      file = (session_.layout().root / rel).string();
+    }
+  }
+  if (file.empty())
+    return MakeError(ErrorCode::kInternal, "pose " + name, "the metering frame has no image");
+  auto image = DecodeImageBytes(bytes, file);
+  if (!image.ok()) return image.error().Within("pose " + name);
+  auto metered = MeterFrame(*image, t_m, cc.linear, file);
+  if (!metered.ok()) return metered.error().Within("pose " + name);
+  AdaptiveBracketOptions o = MeteringWindow(image->depth(), cc.linear);
+  o.headroom_stops = 0;  // the pose itself was metered
+  // Consecutive frames about 2.2 stops apart (a JPEG window of 7.2 stops, 5 overlapping) and
+  // at least three: mid-tones recorded by two frames. With the window's overlap of 0.5 stops
+  // that the planner's evaluation used (metered through the true response), two frames a pose
+  // came out at 1.145x the fixed bracket's error through the nominal metering curve and a
+  // recovered response; these give 1.03x at 43% of the frames (docs/adaptive-brackets.md).
+  o.overlap_stops = std::log2(o.x_hi / o.x_lo) - 2.2;
+  o.min_frames = 3;
+  // Never longer than the fixed bracket's longest: darkness it leaves is not chased.
+  o.max_exposure = Seconds(*std::max_element(run.exposures.begin(), run.exposures.end()));
+  auto plan = PlanAdaptiveBracket(*metered, run.offered, o);
+  if (!plan.ok()) return plan.error().Within("pose " + name);
+  std::vector<double> exposures{t_m};
+  std::vector<std::string> reasons{
+      fmt::format("metering: the fixed bracket's centre exposure ({:.4g} s)", t_m)};
+  for (const auto& f : plan->frames) {
+    // A planned exposure the metering frame already holds is not taken twice.
+    if (std::fabs(f.exposure.count() - t_m) <= 1e-9 * t_m) {
+      reasons[0] += "; planned too: " + f.reason;
+      continue;
+    }
+    exposures.push_back(f.exposure.count());
+    reasons.push_back(f.reason);
+  }
+  RIG_TRY(session_.journal().Append(
+      {{"event", "pose_plan"}, {"pose", name}, {"exposures_s", exposures}, {"reasons", reasons},
+       {"metered_min", plan->e_min}, {"metered_max", plan->e_max},
+       {"covered_min", plan->covered_min}, {"below_fraction", plan->below_fraction},
+       {"above_fraction", plan->above_fraction}}));
+  run.sum.frames += static_cast<int>(exposures.size()) - run.n_exp;  // the estimate, replaced
+  Log("session")->info("pose_plan pose={} frames={} exposures_s=[{}] metered={:.4g}..{:.4g}", name,
+                       exposures.size(), fmt::join(exposures, ", "), plan->e_min, plan->e_max);
+  run.pose_plans[name] = std::move(exposures);
   return Ok();
 }
 
@@ -433,9 +606,9 @@ Status CaptureDaemon::LampOff(RunState& run) {
 
 // Captures frame `index` of the bracket at `pose` (retrying; a body that dropped off the bus
 // is opened again between tries) and stores its files.
-Status CaptureDaemon::CaptureFrame(RunState& run, const Pose& pose, int index, FreshImages& fresh) {
+Status CaptureDaemon::CaptureFrame(RunState& run, const Pose& pose, int index, double exposure,
+                                   FreshImages& fresh) {
   const CameraConfig& cc = session_.config().camera;
-  const double exposure = run.exposures[static_cast<size_t>(index)];
   Result<CapturedFrame> frame = MakeError(ErrorCode::kInternal, "", "no capture");
   auto t0 = Clock::now();
   Status st = WithRetries(
@@ -458,7 +631,10 @@ Status CaptureDaemon::CaptureFrame(RunState& run, const Pose& pose, int index, F
   RIG_TRY(StoreFiles(run, pose, index, exposure, *frame, fresh));
   run.sum.storage_s += Since(t0);
   ++run.sum.frames_captured;
-  if (options_.progress) run.progress->Frame(pose.Name(), index, run.n_exp);
+  if (options_.progress) {
+    const std::vector<double>* e = run.ExposuresOf(pose.Name());
+    run.progress->Frame(pose.Name(), index, e ? static_cast<int>(e->size()) : run.n_exp);
+  }
   return Ok();
 }
 
@@ -478,7 +654,7 @@ Status CaptureDaemon::StoreFiles(RunState& run, const Pose& pose, int index, dou
       run.sum.storage_error = rec.error().Within("pose " + name).ToString();
       return rec.error().Within("pose " + name);
     }
-    if (IsImage(file.extension))
+    if (IsProcessed(session_.config().camera, file.extension))
       fresh[index] = {session_.layout().root / (*rec)["file"].get<std::string>(),
                       std::move(file.bytes)};
   }
@@ -490,19 +666,20 @@ Status CaptureDaemon::StoreFiles(RunState& run, const Pose& pose, int index, dou
 void CaptureDaemon::HandOff(RunState& run, const Pose& pose, FreshImages& fresh) {
   const std::string name = pose.Name();
   BracketJob job{pose, {}, {}, {}};
-  for (int i = 0; i < run.n_exp; ++i) {
+  const std::vector<double>& exposures = *run.ExposuresOf(name);
+  for (int i = 0; i < static_cast<int>(exposures.size()); ++i) {
     auto f = fresh.find(i);
     if (f != fresh.end()) {
       job.files.push_back(f->second.first);
       job.bytes.push_back(std::move(f->second.second));
     } else {
       for (const auto& s : run.stored[name][i]) {
-        if (!IsImage(ExtensionOf(s.record))) continue;
+        if (!IsProcessed(session_.config().camera, ExtensionOf(s.record))) continue;
         job.files.push_back(session_.layout().root / s.record.at("file").get<std::string>());
         job.bytes.emplace_back();
       }
     }
-    job.exposures_s.push_back(run.exposures[static_cast<size_t>(i)]);
+    job.exposures_s.push_back(exposures[static_cast<size_t>(i)]);
   }
   Submit(run, std::move(job));
 }

@@ -75,11 +75,14 @@ class CaptureDaemon {
                      std::set<fs::path>& known_files);
   Status MoveAsideUnjournaled(RunState& run, const std::set<fs::path>& known_files);
   Status CheckPlan(RunState& run, const std::vector<std::string>& pose_names);
+  Status CheckStoredAgainstPlans(RunState& run);
+  Status MeterAndPlan(RunState& run, const Pose& pose, FreshImages& fresh);
   Status MoveTo(RunState& run, const Pose& pose);
   Status Settle(RunState& run);
   Status LampOn(RunState& run);
   Status LampOff(RunState& run);
-  Status CaptureFrame(RunState& run, const Pose& pose, int index, FreshImages& fresh);
+  Status CaptureFrame(RunState& run, const Pose& pose, int index, double exposure_s,
+                      FreshImages& fresh);
   Status StoreFiles(RunState& run, const Pose& pose, int index, double exposure_s,
                     CapturedFrame& frame, FreshImages& fresh);
   void HandOff(RunState& run, const Pose& pose, FreshImages& fresh);

@@ -1,6 +1,8 @@
 // Session processing: response once per session, then a radiance map per pose.
 #include "capture/daemon/processor.h"
+#include "process/io/raw_io.h"
 
+#include <algorithm>
 #include <chrono>
 
 #include <opencv2/imgcodecs.hpp>
@@ -27,6 +29,9 @@ bool IsImageExtension(const std::string& ext) {
 Result<std::vector<BracketJob>> CompleteBrackets(const Session& session) {
   const auto& records = session.history().records;
   std::vector<double> plan_exposures;
+  bool adaptive = false;
+  // Adaptive sessions: each pose's own exposures (its first "pose_plan" record stands).
+  std::map<std::string, size_t> pose_plan_sizes;
   std::vector<std::string> order;
   // pose -> index -> latest frame record (a redone frame supersedes the earlier record)
   std::map<std::string, std::map<int, nlohmann::json>> frames;
@@ -34,10 +39,16 @@ Result<std::vector<BracketJob>> CompleteBrackets(const Session& session) {
     std::string ev = r.value("event", "");
     if (ev == "plan") {
       plan_exposures = r.at("exposures_s").get<std::vector<double>>();
+      adaptive = r.value("bracket_mode", std::string("fixed")) == "adaptive";
+    } else if (ev == "pose_plan") {
+      pose_plan_sizes.emplace(r.at("pose").get<std::string>(), r.at("exposures_s").size());
     } else if (ev == "frame") {
       const std::string file_ext = fs::path(r.value("file", "")).extension().string();
       std::string ext = r.value("ext", file_ext.empty() ? std::string() : file_ext.substr(1));
-      if (!IsImageExtension(ext)) continue;  // RAW files travel beside their JPEG
+      // The files processing reads: RAW where the session processes RAW, else the rendered
+      // image (RAW files travel beside their JPEG).
+      if (ProcessesRaw(session.config().camera) ? !IsRawPath("x." + ext) : !IsImageExtension(ext))
+        continue;
       std::string pose = r.at("pose").get<std::string>();
       if (frames.find(pose) == frames.end()) order.push_back(pose);
       frames[pose][r.at("index").get<int>()] = r;
@@ -49,7 +60,10 @@ Result<std::vector<BracketJob>> CompleteBrackets(const Session& session) {
   std::vector<BracketJob> jobs;
   for (const auto& pose : order) {
     const auto& f = frames[pose];
-    if (f.size() != plan_exposures.size()) continue;
+    // The exposures the pose was planned with: its own plan (adaptive), else the session's.
+    auto own = pose_plan_sizes.find(pose);
+    if (adaptive && own == pose_plan_sizes.end()) continue;  // metered, never planned
+    if (f.size() != (adaptive ? own->second : plan_exposures.size())) continue;
     RIG_ASSIGN_OR_RETURN(Pose p, ParsePoseName(pose));
     BracketJob job{p, {}, {}, {}, {}};
     bool ok = true;
@@ -121,6 +135,12 @@ bool HdrStage::EnsureResponse(bool force) {
   if (response_) return true;
   if (recovery_failed_) return false;
   auto log = Log("process");
+  if (ProcessesRaw(config_.camera)) {
+    response_ = LinearResponse(65536);  // LibRaw's linear 16-bit values
+    summary_.response_id = response_->id;
+    log->info("RAW frames are linear: no response recovery");
+    return true;
+  }
   if (config_.camera.linear) {
     response_ = LinearResponse(256);
     summary_.response_id = response_->id;
@@ -240,6 +260,22 @@ void HdrStage::MergeOne(BracketJob& job) {
 
 void HdrStage::Add(BracketJob job) {
   summary_.failed.erase(job.pose.Name());
+  // Shortest exposure first, whatever the bracket indices' order (an adaptive pose's metering
+  // frame is index 0 at the centre exposure).
+  std::vector<size_t> order(job.files.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](size_t a, size_t b) { return job.exposures_s[a] < job.exposures_s[b]; });
+  auto permute = [&](auto& v) {
+    if (v.size() != order.size()) return;
+    std::remove_reference_t<decltype(v)> sorted;
+    for (size_t i : order) sorted.push_back(std::move(v[i]));
+    v = std::move(sorted);
+  };
+  permute(job.files);
+  permute(job.exposures_s);
+  permute(job.journaled);
+  permute(job.bytes);
   pending_.push_back(std::move(job));
   if (!EnsureResponse(false)) return;
   for (auto& j : pending_) Merge(j);

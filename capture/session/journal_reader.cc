@@ -152,6 +152,9 @@ std::string RecordProblem(const json& r) {
     c.String("camera", false);
     c.String("motor", false);
     c.String("lamp", false);
+  } else if (e == "pose_plan") {
+    c.Pose("pose");
+    c.ExposureList("exposures_s");
   } else if (e == "frame_damaged") {
     c.Pose("pose");
     c.Integer("index", 0, kMaxBracketIndex - 1);
