@@ -167,43 +167,79 @@ SphereCircle RefineOnce(const cv::Mat& lg, const cv::Mat& lin, const SphereCircl
   const double step = 0.25;
   for (int a = 0; a < rays; ++a) {
     const double th = 2 * kPi * a / rays, ca = std::cos(th), sa = std::sin(th);
-    double best = 0, best_r = 0;
     std::vector<double> prof;
     const double r0 = rough.r * 0.75, r1 = rough.r * 1.25 + 2;
     for (double r = r0; r <= r1; r += step)
       prof.push_back(Sample(lg, rough.cx + r * ca, rough.cy + r * sa));
     std::vector<double> d(prof.size(), 0);
     for (size_t i = 1; i + 1 < prof.size(); ++i) d[i] = std::abs(prof[i + 1] - prof[i - 1]);
+    // The sphere's edge is the innermost strong edge of the ray (at least half its steepest):
+    // the background's own edges (a checker, a shadow's border) lie outside it, and one of
+    // them can be the steeper in the log when the limb's dark level sits on a noise floor
+    // (a merged radiance map's darkest pixels are lifted by the noise; the median keeps that).
+    double dmax = 0;
+    for (size_t i = 1; i + 1 < d.size(); ++i) dmax = std::max(dmax, d[i]);
+    if (dmax <= 0) continue;
     size_t bi = 0;
     for (size_t i = 1; i + 1 < d.size(); ++i)
-      if (d[i] > best) best = d[i], bi = i;
-    if (bi == 0) continue;
-    double off = 0;
-    const double den = d[bi - 1] - 2 * d[bi] + d[bi + 1];
-    if (std::abs(den) > 1e-12) off = std::clamp(0.5 * (d[bi - 1] - d[bi + 1]) / den, -0.5, 0.5);
-    best_r = r0 + (bi + off) * step;
-    // The edge's position: where the linear profile crosses halfway between the levels
-    // inside and outside (the steepest point of the log profile is only the coarse guess).
-    {
-      auto at = [&](double r) { return Sample(lin, rough.cx + r * ca, rough.cy + r * sa); };
-      double in = 0, outv = 0;
-      for (double d = 2; d <= 4; d += 0.5) in += at(best_r - d), outv += at(best_r + d);
-      in /= 5;
-      outv /= 5;
-      const double mid = 0.5 * (in + outv);
-      double prev = at(best_r - 2), found = -1;
-      for (double r = best_r - 2 + 0.125; r <= best_r + 2; r += 0.125) {
-        const double cur = at(r);
-        if ((prev - mid) * (cur - mid) <= 0 && prev != cur) {
-          const double f = (mid - prev) / (cur - prev);
-          const double cand = r - 0.125 + f * 0.125;
-          if (found < 0 || std::abs(cand - best_r) < std::abs(found - best_r)) found = cand;
-        }
-        prev = cur;
+      if (d[i] >= 0.5 * dmax && d[i] >= d[i - 1] && d[i] >= d[i + 1]) {
+        bi = i;
+        break;
       }
-      if (found > 0) best_r = found;
+    if (bi == 0) continue;
+    const double best = d[bi];
+    const double coarse = r0 + bi * step;
+    // The edge's position: where the linear profile crosses halfway between its levels on
+    // either side of this edge (the steepest point of the log profile is only the coarse
+    // guess: in a log image a blurred step's steepest point moves towards the dark side).
+    // The levels are read where the linear profile's slope, walking away from the edge's
+    // steepest point, has fallen to a fifth of it: just outside the edge's own transition and
+    // before the next edge (a background edge 2 px further must not set the outer level). A
+    // symmetric blur gives symmetric walks, so the halfway crossing is the edge's position.
+    auto at = [&](double r) { return Sample(lin, rough.cx + r * ca, rough.cy + r * sa); };
+    const double fine = 0.125;
+    auto slope = [&](double r) { return std::abs(at(r + 2 * fine) - at(r - 2 * fine)); };
+    double peak_r = coarse, peak = -1;
+    for (double r = coarse - 1; r <= coarse + 1 + 1e-9; r += fine) {
+      const double s = slope(r);
+      if (s > peak) peak = s, peak_r = r;
     }
-    pts.push_back({rough.cx + best_r * ca, rough.cy + best_r * sa});
+    if (!(peak > 0)) continue;
+    // The halfway crossing is the edge's position only for an isolated step between two
+    // flat levels. A ray where another edge follows within the blur of this one (the slope
+    // rises again before it has fallen, or within as far again after) is left out: there the
+    // crossing is pulled towards the other edge, by up to a pixel when it is 10x stronger.
+    const double max_walk = 4;
+    auto walk = [&](double dir, double* end) {
+      double r = peak_r, lowest = peak;
+      while (std::abs(r - peak_r) < max_walk) {
+        const double s = slope(r);
+        if (s > lowest + 0.1 * peak) return false;
+        lowest = std::min(lowest, s);
+        if (s <= 0.2 * peak) break;
+        r += dir * fine;
+      }
+      if (std::abs(r - peak_r) >= max_walk) return false;
+      *end = r;
+      const double margin = std::max(0.5, std::abs(r - peak_r));
+      for (double q = r; std::abs(q - r) <= margin; q += dir * fine)
+        if (slope(q) > 0.3 * peak) return false;
+      return true;
+    };
+    double r_in = peak_r, r_out = peak_r;
+    if (!walk(-1, &r_in) || !walk(+1, &r_out)) continue;
+    const double mid = 0.5 * (at(r_in) + at(r_out));
+    double found = -1, prev = at(r_in);
+    for (double r = r_in + fine; r <= r_out + 1e-9; r += fine) {
+      const double cur = at(r);
+      if ((prev - mid) * (cur - mid) <= 0 && prev != cur) {
+        const double cand = r - fine + (mid - prev) / (cur - prev) * fine;
+        if (found < 0 || std::abs(cand - peak_r) < std::abs(found - peak_r)) found = cand;
+      }
+      prev = cur;
+    }
+    if (found <= 0) continue;
+    pts.push_back({rough.cx + found * ca, rough.cy + found * sa});
     strengths.push_back(static_cast<float>(best));
   }
   // Only the clear edge points: where the sphere meets a background of another brightness.

@@ -94,15 +94,15 @@ TEST_F(CalibrateLights, RecoversDirectionsAndArmOffsetsFromTheSphere) {
                               *session_, c.cx_px, c.cy_px, c.r_px, *session_));
   ASSERT_EQ(g.status, 0) << g.output;
   CheckRun(*session_ + "/calib", 0.2, 0.5, "circle given");
-  // Found automatically. Through the camera (noise, JPEG, the merge) the found circle is ~0.4 px
-  // off (on exact radiance it is within 0.1 px, tests/process/lights_test.cc), which costs
-  // ~1.3 deg: the goals are NOT met this way yet (docs/lights.md); what is held here is the
-  // figure measured, so it cannot get worse unnoticed.
+  // Found automatically, through the camera (noise, JPEG, the merge): the same goals. (The
+  // sphere's dark limb sits on the merge's noise floor there, which once made a checker edge
+  // of the background 2 px outside the limb the steeper one in the log and moved the circle
+  // 0.4 px: 1.3 deg of light.)
   auto r = RunRig("calibrate-lights " + *session_ + " --force");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_THAT(r.output, HasSubstr("orthographic"));
   EXPECT_THAT(r.output, HasSubstr("h090_v30"));  // the residual of every pose is printed
-  CheckRun(*session_ + "/calib", 1.6, 2.0, "circle found");
+  CheckRun(*session_ + "/calib", 0.2, 0.5, "circle found");
   // Never overwritten without --force.
   auto again = RunRig("calibrate-lights " + *session_);
   EXPECT_EQ(again.status, 2) << again.output;
