@@ -195,14 +195,28 @@ double CaptureService::Now() const {
 JobInfo* CaptureService::Running() { return running_ ? &jobs_[static_cast<size_t>(running_ - 1)] : nullptr; }
 
 Result<JobInfo> CaptureService::Submit(const nlohmann::json& request) {
-  RIG_ASSIGN_OR_RETURN(JobInfo job, ParseJobRequest(request, options_));
+  Result<JobInfo> parsed = ParseJobRequest(request, options_);
   std::lock_guard lock(mu_);
   if (shutdown_) return MakeError(ErrorCode::kBusy, "daemon", "shutting down; no new jobs");
-  for (int id : queue_)
-    if (jobs_[static_cast<size_t>(id - 1)].session == job.session)
-      return MakeError(ErrorCode::kBusy, job.session.string(), "already queued as job {}", id);
-  if (JobInfo* r = Running(); r && r->session == job.session)
-    return MakeError(ErrorCode::kBusy, job.session.string(), "job {} is running on it", r->id);
+  // A session a job is queued or running on is busy, whatever else the request says: checked
+  // before the request's own refusals, which depend on how far that job has got (once it has
+  // written session.toml, a capture would be "already holds a session").
+  fs::path session;
+  if (parsed.ok()) {
+    session = parsed->session;
+  } else if (request.is_object() && request.contains("session") && request["session"].is_string()) {
+    session = fs::path(request["session"].get<std::string>()).lexically_normal();
+    if (!session.has_filename()) session = session.parent_path();
+  }
+  if (!session.empty()) {
+    for (int id : queue_)
+      if (jobs_[static_cast<size_t>(id - 1)].session == session)
+        return MakeError(ErrorCode::kBusy, session.string(), "already queued as job {}", id);
+    if (JobInfo* r = Running(); r && r->session == session)
+      return MakeError(ErrorCode::kBusy, session.string(), "job {} is running on it", r->id);
+  }
+  if (!parsed.ok()) return parsed.error();
+  JobInfo job = std::move(*parsed);
   job.id = static_cast<int>(jobs_.size()) + 1;
   job.queued_s = Now();
   jobs_.push_back(job);

@@ -179,9 +179,10 @@ double Work(const Net& net, const TrainData& d, const size_t* order, int n, cons
       x(k + 1, col) = d.light_xy(1, li);
     }
   }
-  Forward(net.dec, &da);
+  const Eigen::Index columns = x.cols();
+  Forward(net.dec, &da);  // resizes da: x no longer refers to it
   const MatF& o = da.back();
-  MatF r(3, x.cols());
+  MatF r(3, columns);
   double loss = 0;
   const LightSamples& s = *d.samples;
   for (int j = 0; j < n; ++j) {

@@ -156,6 +156,10 @@ TEST(DaemonService, StopMidSessionThenResumeStoresWhatAnUninterruptedSessionStor
   EXPECT_GE(s["pose"]["index"].get<int>(), 4);  // 15 frames of 3: at least 5 poses stored
   EXPECT_TRUE(s["eta_s"].is_number());
   EXPECT_EQ(s["grid"].size(), 40u);
+  // Running, with its session.toml written: still busy (not "already holds a session").
+  auto again = d.client->Post("/api/jobs", {{"kind", "capture"}, {"session", a.string()}, {"config", cfg}});
+  ASSERT_FALSE(again.ok());
+  EXPECT_EQ(again.error().code, ErrorCode::kBusy) << again.error().ToString();
 
   auto stop = d.client->Post("/api/stop", nlohmann::json::object());
   ASSERT_TRUE(stop.ok());
