@@ -18,10 +18,17 @@ source scripts/sanitizer-env.sh "$root/$build"
 cmake --build "$build" -j2
 cmake --build "$build" -j2 --target fuzzers
 
-# Tests too heavy for an instrumented build inside CI's budget carry the ctest label
-# "sanitize-skip" (tests/CMakeLists.txt says which and why); they run in the plain suite.
+# Left out here (they run in the plain suite), each for a fault in third-party code, found by
+# this suite on 2 December 2026:
+# - gphoto2.* (libgphoto2 2.5.30's virtual USB camera, built from Debian's source as a test
+#   fixture): vcamera.c's trace of a read fwrite()s 1024 bytes past a shorter buffer
+#   (vcam_read, line 1931) and segfaults under ASan; its ptp_shutterspeed_getdesc leaks.
+# - DevicesCommand.* (`rig devices`): libgphoto2's usb1 port library, loaded and unloaded
+#   inside gp_camera_autodetect, leaks libusb's device list from a module LeakSanitizer can no
+#   longer name, so no suppression can match it.
+skip='^(gphoto2\.|DevicesCommand\.)'
 status=0
-ctest --test-dir "$build" -j2 --output-on-failure --timeout 900 -LE sanitize-skip "$@" || status=$?
+ctest --test-dir "$build" -j2 --output-on-failure --timeout 900 -E "$skip" "$@" || status=$?
 if compgen -G "$RIG_SANITIZER_LOGS/*" >/dev/null; then
   echo "test-sanitize: sanitizer reports (in $RIG_SANITIZER_LOGS):" >&2
   for f in "$RIG_SANITIZER_LOGS"/*; do
