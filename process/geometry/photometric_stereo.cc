@@ -24,18 +24,27 @@ struct Sample {
   int k;
 };
 
-// Weighted LS for g in I = g.s; false if singular.
-bool Solve(const std::vector<Sample>& smp, const std::vector<double>& w, Eigen::Vector3d* g) {
-  Eigen::Matrix3d a = Eigen::Matrix3d::Zero();
-  Eigen::Vector3d b = Eigen::Vector3d::Zero();
+// The weighted normal equations of I = g.s over the samples of positive weight: A = Σ w s sᵀ,
+// b = Σ w I s; returns how many samples took part.
+int NormalEquations(const std::vector<Sample>& smp, const std::vector<double>& w,
+                    Eigen::Matrix3d* a, Eigen::Vector3d* b) {
+  *a = Eigen::Matrix3d::Zero();
+  *b = Eigen::Vector3d::Zero();
   int n = 0;
   for (size_t k = 0; k < smp.size(); ++k) {
     if (w[k] <= 0) continue;
-    a += w[k] * smp[k].s * smp[k].s.transpose();
-    b += w[k] * smp[k].i * smp[k].s;
+    *a += w[k] * smp[k].s * smp[k].s.transpose();
+    *b += w[k] * smp[k].i * smp[k].s;
     ++n;
   }
-  if (n < 3) return false;
+  return n;
+}
+
+// Weighted LS for g in I = g.s; false if singular.
+bool Solve(const std::vector<Sample>& smp, const std::vector<double>& w, Eigen::Vector3d* g) {
+  Eigen::Matrix3d a;
+  Eigen::Vector3d b;
+  if (NormalEquations(smp, w, &a, &b) < 3) return false;
   Eigen::LDLT<Eigen::Matrix3d> ldlt(a);
   if (ldlt.info() != Eigen::Success) return false;
   // A nearly rank-deficient set (all lights in one plane) gives no normal.
@@ -201,16 +210,9 @@ Vec3 EstimateLight(const cv::Mat& linear_bgr, const cv::Mat& clipped, const PsRe
   std::vector<double> w(smp.size(), 1.0);
   Eigen::Vector3d g = l0;
   for (int it = 0; it < 5; ++it) {
-    Eigen::Matrix3d a = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d b = Eigen::Vector3d::Zero();
-    int n = 0;
-    for (size_t k = 0; k < smp.size(); ++k) {
-      if (w[k] <= 0) continue;
-      a += w[k] * smp[k].s * smp[k].s.transpose();
-      b += w[k] * smp[k].i * smp[k].s;
-      ++n;
-    }
-    if (n < 10) return start;
+    Eigen::Matrix3d a;
+    Eigen::Vector3d b;
+    if (NormalEquations(smp, w, &a, &b) < 10) return start;
     const double c = l0.dot(b) / std::max(l0.dot(a * l0), 1e-30);
     const double mu = 0.05 * a.trace() / 3;
     g = (a + mu * Eigen::Matrix3d::Identity()).ldlt().solve(b + mu * c * l0);
