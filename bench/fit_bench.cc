@@ -4,7 +4,11 @@
 // EXRs at 1, 6 (and with --max-mp 24, 24) megapixels x 40 poses: time and the peak resident
 // memory of the process that fits (a child process, so the data generation is not counted).
 //
-//   build/bench/fit_bench [--max-mp 6] [--dir /tmp]
+// (3) The model at the last frame: the same sessions' maps kept in memory as they are written
+// (MapStore::Add, what the capture does after each merge), then the model fitted from memory
+// the moment the last map is in, beside the fit from the files, and the two models compared.
+//
+//   build/bench/fit_bench [--max-mp 6] [--dir /tmp] [--only-last-frame]
 #include <spawn.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -24,7 +28,13 @@
 #include "config/log.h"
 #include "process/io/exr_io.h"
 #include "process/model/fit.h"
+#include "process/model/map_store.h"
 #include "process/model/model_stream.h"
+
+#include <ImfChannelList.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
@@ -54,6 +64,62 @@ std::vector<rig::Vec3> GridDirections(std::vector<double>* h, std::vector<double
       v->push_back(vv);
     }
   return d;
+}
+
+
+// Largest |a - b| over every channel of two EXR files of one size (read in bands of rows).
+double MaxDifference(const std::string& a_path, const std::string& b_path) {
+  Imf::InputFile a(a_path.c_str(), 2), b(b_path.c_str(), 2);
+  const Imath::Box2i dw = a.header().dataWindow();
+  const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
+  std::vector<std::string> names;
+  for (auto it = a.header().channels().begin(); it != a.header().channels().end(); ++it)
+    names.push_back(it.name());
+  double worst = 0;
+  const int band = 64;
+  std::vector<float> ba, bb;
+  for (int y0 = 0; y0 < h; y0 += band) {
+    const int rows = std::min(band, h - y0);
+    const size_t plane = size_t(w) * rows;
+    ba.assign(plane * names.size(), 0.f);
+    bb.assign(plane * names.size(), 0.f);
+    Imf::FrameBuffer fa, fb;
+    for (size_t c = 0; c < names.size(); ++c) {
+      char* pa = reinterpret_cast<char*>(ba.data() + c * plane) - (ptrdiff_t(y0) * w) * 4;
+      char* pb = reinterpret_cast<char*>(bb.data() + c * plane) - (ptrdiff_t(y0) * w) * 4;
+      fa.insert(names[c], Imf::Slice(Imf::FLOAT, pa, 4, 4 * size_t(w)));
+      fb.insert(names[c], Imf::Slice(Imf::FLOAT, pb, 4, 4 * size_t(w)));
+    }
+    a.setFrameBuffer(fa);
+    b.setFrameBuffer(fb);
+    a.readPixels(y0, y0 + rows - 1);
+    b.readPixels(y0, y0 + rows - 1);
+    for (size_t i = 0; i < ba.size(); ++i) worst = std::max(worst, double(std::fabs(ba[i] - bb[i])));
+  }
+  return worst;
+}
+
+double PeakRssMb() {
+  double hwm_kb = 0;
+  if (std::FILE* st = std::fopen("/proc/self/status", "r")) {
+    char line[256];
+    while (std::fgets(line, sizeof line, st))
+      if (std::sscanf(line, "VmHWM: %lf kB", &hwm_kb) == 1) break;
+    std::fclose(st);
+  }
+  return hwm_kb / 1024.0;
+}
+
+// A glossy session's map at lamp direction l: Lambertian on random normals plus a Phong lobe
+// (so the order choice goes past 1), as BGR float radiance.
+cv::Mat GlossyMap(const cv::Mat& nx, const cv::Mat& ny, const cv::Mat& nz, const rig::Vec3& l) {
+  cv::Mat ndl = nx * float(l[0]) + ny * float(l[1]) + nz * float(l[2]);
+  cv::Mat lobe = cv::max(2.0f * ndl.mul(nz) - float(l[2]), 0.0f), spec;
+  cv::pow(lobe, 12.0, spec);
+  cv::Mat r = cv::max(ndl, 0.0f) * 0.6f + spec * 0.8f + 0.02f;
+  cv::Mat rgb;
+  cv::merge(std::vector<cv::Mat>{r, r * 0.9f + spec * 0.1f, r * 0.8f + spec * 0.2f}, rgb);
+  return rgb;
 }
 
 }  // namespace
@@ -100,11 +166,17 @@ int main(int argc, char** argv) {
     return FitOnly(argv[2], argv[3]);
   }
   int max_mp = 6;
+  bool only_last_frame = false;
   std::string dir = fs::temp_directory_path().string();
-  for (int i = 1; i + 1 < argc; i += 2) {
+  for (int i = 1; i < argc; ++i) {
     const std::string k = argv[i];
-    if (k == "--max-mp") max_mp = std::atoi(argv[i + 1]);
-    if (k == "--dir") dir = argv[i + 1];
+    if (k == "--only-last-frame") {
+      only_last_frame = true;
+      continue;
+    }
+    if (i + 1 >= argc) break;
+    if (k == "--max-mp") max_mp = std::atoi(argv[++i]);
+    if (k == "--dir") dir = argv[++i];
   }
   rig::SetLogLevel("warn");
   std::vector<double> hs, vs;
@@ -113,7 +185,7 @@ int main(int argc, char** argv) {
   const int poses = static_cast<int>(dirs.size());
 
   // ---- (1) applying the fit against a GEMM of the same shape ----
-  {
+  if (!only_last_frame) {
     const int order = 3;
     const rig::Basis basis(rig::BasisKind::kSh, order);
     auto pr = rig::BuildProjector(basis, dirs, weights, rig::FitMethod::kRls, 1e-4, 1e12);
@@ -140,7 +212,7 @@ int main(int argc, char** argv) {
   std::printf("\nstreamed fit of a 40-pose session of half-float radiance EXRs (order auto, rls)\n");
   std::printf("  %-10s %12s %12s %14s %14s\n", "size", "input GB", "fit s", "peak RSS MB", "in-memory GB");
   for (int mp : {1, 6, 24}) {
-    if (mp > max_mp) break;
+    if (mp > max_mp || only_last_frame) break;
     const int width = mp == 1 ? 1200 : mp == 6 ? 3000 : 6000;
     const int height = mp == 1 ? 834 : mp == 6 ? 2000 : 4000;
     const fs::path folder = fs::path(dir) / ("rig_fit_bench_" + std::to_string(mp) + "mp_" + std::to_string(getpid()));
@@ -180,6 +252,68 @@ int main(int argc, char** argv) {
                 in_memory);
     fs::remove_all(folder);
     if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) return 1;
+  }
+
+  // ---- (3) the model at the last frame ----
+  std::printf("\nthe model at the last frame: a glossy 40-pose session, maps written as half EXRs and "
+              "kept in memory as they arrive\n(order auto, rls, 2 threads; 'after last map': from the "
+              "last map in memory to the model renamed into place)\n");
+  std::printf("  %-8s %6s %10s %12s %16s %14s %12s %12s\n", "size", "terms", "keep s/map",
+              "store GB", "after last map s", "from files s", "max |diff|", "peak RSS MB");
+  for (int mp : {1, 6, 24}) {
+    if (mp > max_mp) break;
+    const int width = mp == 1 ? 1200 : mp == 6 ? 3000 : 6000;
+    const int height = mp == 1 ? 834 : mp == 6 ? 2000 : 4000;
+    const fs::path folder = fs::path(dir) / ("rig_fit_bench_last_" + std::to_string(mp) + "mp_" + std::to_string(getpid()));
+    fs::create_directories(folder);
+    cv::Mat nx(height, width, CV_32F), ny(height, width, CV_32F), nz;
+    cv::randu(nx, -0.5, 0.5);
+    cv::randu(ny, -0.5, 0.5);
+    cv::sqrt(1.0f - nx.mul(nx) - ny.mul(ny), nz);
+    rig::MapStore store(rig::ExrPixelType::kHalf, dirs.size(), rig::MapStore::DefaultMaxBytes());
+    rig::StreamFitInput in;
+    in.directions = dirs;
+    in.weights = weights;
+    std::vector<std::string> keys;
+    double keep_s = 0;
+    for (int i = 0; i < poses; ++i) {
+      const cv::Mat rgb = GlossyMap(nx, ny, nz, dirs[i]);
+      const std::string p = (folder / ("pose" + std::to_string(i) + ".exr")).string();
+      if (!rig::WriteRgbExr(p, rgb, {}, rig::ExrPixelType::kHalf).ok()) return 1;
+      const auto t = Clock::now();
+      if (!store.Add("pose" + std::to_string(i), rgb, cv::Mat()).ok()) return 1;
+      keep_s += Seconds(t);
+      in.paths.push_back(p);
+      keys.push_back("pose" + std::to_string(i));
+    }
+    if (store.off()) {
+      std::printf("  %-8s the maps do not fit in memory here: %s\n", (std::to_string(mp) + " MP").c_str(),
+                  store.off_reason().c_str());
+      fs::remove_all(folder);
+      continue;
+    }
+    rig::FitOptions o;
+    o.threads = 2;
+    const std::string from_memory = (folder / "memory.exr").string(), from_files = (folder / "files.exr").string();
+    auto t = Clock::now();
+    auto bands = store.Bands(keys);
+    if (!bands.ok()) return 1;
+    auto mem = rig::FitModelFromBands(**bands, in, o, from_memory, rig::ExrPixelType::kHalf);
+    const double after_last = Seconds(t);
+    if (!mem.ok()) {
+      std::fprintf(stderr, "%s\n", mem.error().ToString().c_str());
+      return 1;
+    }
+    t = Clock::now();
+    auto files = rig::FitModelStreaming(in, o, from_files, rig::ExrPixelType::kHalf);
+    const double batch = Seconds(t);
+    if (!files.ok()) return 1;
+    const double diff = MaxDifference(from_memory, from_files);
+    std::printf("  %-8s %6d %10.3f %12.2f %16.2f %14.2f %12.3g %12.0f\n", (std::to_string(mp) + " MP").c_str(),
+                mem->selection.projector.basis.size(), keep_s / poses, store.bytes() / 1e9, after_last,
+                batch, diff, PeakRssMb());
+    std::fflush(stdout);
+    fs::remove_all(folder);
   }
   return 0;
 }

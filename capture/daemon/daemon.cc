@@ -412,9 +412,22 @@ Status CaptureDaemon::CheckPlan(RunState& run, const std::vector<std::string>& p
 // radiance map is missing.
 void CaptureDaemon::StartProcessing(RunState& run) {
   const SessionLayout& layout = session_.layout();
-  if (options_.process) run.processor.emplace(layout, session_.config());
+  if (options_.process) {
+    const Config& config = session_.config();
+    store_ = std::make_shared<MapStore>(
+        config.process.hdr_pixel_type == "half" ? ExrPixelType::kHalf : ExrPixelType::kFloat,
+        run.poses.size(), MapStore::DefaultMaxBytes());
+    run.processor.emplace(layout, config, store_.get());
+  }
   for (const auto& p : run.poses) {
-    if (!run.PoseDone(p.Name()) || fs::exists(layout.Hdr(p.Name()))) continue;
+    if (!run.PoseDone(p.Name())) continue;
+    if (fs::exists(layout.Hdr(p.Name()))) {
+      // Merged before: read into the map store while the rig moves on.
+      BracketJob job{p, {}, {}, {}};
+      job.map_only = true;
+      Submit(run, std::move(job));
+      continue;
+    }
     BracketJob job{p, {}, {}, {}};
     const int n = static_cast<int>(run.ExposuresOf(p.Name())->size());
     for (int i = 0; i < n; ++i) {

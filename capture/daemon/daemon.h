@@ -5,6 +5,7 @@
 
 #include <functional>
 #include <map>
+#include <memory>
 #include <set>
 #include <string>
 #include <utility>
@@ -53,6 +54,11 @@ class CaptureDaemon {
   // `summary` is filled in either way.
   Status Run(CaptureSummary* summary);
 
+  // The radiance maps of the session kept in memory as they were merged (and, on a resume,
+  // read from the maps merged before), for fitting the model at the last frame without
+  // reading them back; null when nothing was processed. Valid after Run().
+  std::shared_ptr<const MapStore> map_store() const { return store_; }
+
  private:
   // One run's state (defined in daemon.cc): what is stored, the plan, which devices are
   // open, the pose in hand, the processor and the progress bar.
@@ -100,6 +106,7 @@ class CaptureDaemon {
   Motor& motor_;
   Lamp& lamp_;
   CaptureOptions options_;
+  std::shared_ptr<MapStore> store_;
 };
 
 }  // namespace rig

@@ -217,9 +217,11 @@ void HdrStage::MergeOne(BracketJob& job) {
     }
     if (fresh) {
       ++summary_.skipped_up_to_date;
+      KeepStored(name, out);
       return;
     }
   }
+  if (store_) store_->Drop(name);
   auto bracket = Decode(job);
   if (!bracket.ok()) {
     summary_.failed[name] = bracket.error().ToString();
@@ -254,11 +256,29 @@ void HdrStage::MergeOne(BracketJob& job) {
     return;
   }
   ++summary_.merged;
+  if (store_) {
+    // The values the file holds, for the model fitted at the last frame.
+    Status kept = store_->Add(name, map->radiance, map->flags);
+    if (!kept.ok()) Log("process")->warn("pose={} not kept for the model: {}", name, kept.error().ToString());
+  }
   Log("process")->debug("merged pose={} saturated={} black={}", name, map->saturated_pixels,
                         map->black_pixels);
 }
 
+void HdrStage::KeepStored(const std::string& pose, const fs::path& map) {
+  if (!store_ || store_->off()) return;
+  Status st = store_->AddFile(pose, map.string());
+  if (!st.ok()) {
+    store_->Drop(pose);
+    Log("process")->warn("pose={} radiance map not kept for the model: {}", pose, st.error().ToString());
+  }
+}
+
 void HdrStage::Add(BracketJob job) {
+  if (job.map_only) {
+    KeepStored(job.pose.Name(), layout_.Hdr(job.pose.Name()));
+    return;
+  }
   summary_.failed.erase(job.pose.Name());
   // Shortest exposure first, whatever the bracket indices' order (an adaptive pose's metering
   // frame is index 0 at the centre exposure).
@@ -291,10 +311,13 @@ void HdrStage::Flush() {
 
 // ---- BracketProcessor ------------------------------------------------------------------
 
-BracketProcessor::BracketProcessor(SessionLayout layout, Config config)
+BracketProcessor::BracketProcessor(SessionLayout layout, Config config, MapStore* store)
     : stage_(std::move(layout), config),
       capacity_(static_cast<size_t>(std::max(1, config.process.queue_depth))),
-      worker_([this] { Run(); }) {}
+      worker_([this, store] {
+        stage_.set_map_store(store);
+        Run();
+      }) {}
 
 BracketProcessor::~BracketProcessor() { Finish(); }
 

@@ -20,6 +20,7 @@
 
 #include "config/config.h"
 #include "process/hdr/hdr.h"
+#include "process/model/map_store.h"
 #include "capture/plan/pose.h"
 #include "capture/session/session_store.h"
 
@@ -35,6 +36,9 @@ struct BracketJob {
   std::vector<std::pair<uint64_t, uint32_t>> journaled;
   // The bytes as captured, when at hand (saves reading them back); else read from files.
   std::vector<std::vector<uint8_t>> bytes;
+  // The pose's radiance map is stored already (a resume): it is only read into the map
+  // store, for the model fitted at the last frame.
+  bool map_only = false;
 };
 
 struct ProcessingSummary {
@@ -62,12 +66,15 @@ class HdrStage {
   void set_skip_up_to_date(bool skip) { skip_up_to_date_ = skip; }
   // Called after each pose is merged, skipped or failed (for a progress bar).
   void set_on_pose(std::function<void(const std::string& pose)> f) { on_pose_ = std::move(f); }
+  // Every map written or found up to date is also kept in `store` (not owned; may be null).
+  void set_map_store(MapStore* store) { store_ = store; }
   const ProcessingSummary& summary() const { return summary_; }
 
  private:
   bool EnsureResponse(bool force);
   void Merge(BracketJob& job);
   void MergeOne(BracketJob& job);
+  void KeepStored(const std::string& pose, const fs::path& map);
   Result<Bracket> Decode(BracketJob& job);
 
   SessionLayout layout_;
@@ -78,12 +85,14 @@ class HdrStage {
   bool recovery_failed_ = false;
   ProcessingSummary summary_;
   std::function<void(const std::string& pose)> on_pose_;
+  MapStore* store_ = nullptr;
 };
 
 // A worker thread with a bounded queue in front of an HdrStage.
 class BracketProcessor {
  public:
-  BracketProcessor(SessionLayout layout, Config config);
+  // `store` (not owned; may be null) receives every radiance map (HdrStage::set_map_store).
+  BracketProcessor(SessionLayout layout, Config config, MapStore* store = nullptr);
   ~BracketProcessor();
   // Blocks only while the queue is full: capture waits on processing then, and only then.
   void Submit(BracketJob job);

@@ -440,7 +440,7 @@ void CaptureService::RunCapture(JobInfo& job, Session& session) {
   }
   job.state = "done";
   job.exit_code = 0;
-  if (job.process) Fit(job, session);
+  if (job.process) Fit(job, session, daemon.map_store().get());
 }
 
 void CaptureService::RunProcess(JobInfo& job, Session& session) {
@@ -457,6 +457,10 @@ void CaptureService::RunProcess(JobInfo& job, Session& session) {
     return;
   }
   HdrStage stage(session.layout(), session.config());
+  MapStore maps(session.config().process.hdr_pixel_type == "half" ? ExrPixelType::kHalf
+                                                                  : ExrPixelType::kFloat,
+                brackets->size(), MapStore::DefaultMaxBytes());
+  if (hooks_.fit_model) stage.set_map_store(&maps);
   stage.set_skip_up_to_date(!job.force);
   for (auto& b : *brackets) stage.Add(std::move(b));
   stage.Flush();
@@ -466,17 +470,17 @@ void CaptureService::RunProcess(JobInfo& job, Session& session) {
   job.state = s.failed.empty() ? "done" : "failed";
   job.exit_code = s.failed.empty() ? 0 : 1;
   if (!s.failed.empty()) job.error = fmt::format("{} radiance map(s) failed", s.failed.size());
-  Fit(job, session);
+  Fit(job, session, &maps);
 }
 
-void CaptureService::Fit(JobInfo& job, Session& session) {
+void CaptureService::Fit(JobInfo& job, Session& session, const MapStore* maps) {
   if (!hooks_.fit_model) return;
   {
     std::lock_guard lock(mu_);
     phase_ = "fitting";
     if (watched_) watched_->started_s = Now();
   }
-  Status st = hooks_.fit_model(session);
+  Status st = hooks_.fit_model(session, maps);
   if (!st.ok()) {
     job.state = "failed";
     job.error = st.error().Within("model").ToString();

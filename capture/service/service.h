@@ -30,6 +30,10 @@
 
 namespace rig {
 
+// process/model/map_store.h (not included: it brings Eigen, which clashes with <resolv.h>'s
+// _res macro in files that include cpp-httplib first).
+class MapStore;
+
 // The devices of one session, built by the executable (rig/backends.cc knows the backends;
 // this library does not). `owner` keeps whatever the pointers point into alive.
 struct ServiceDevices {
@@ -48,7 +52,8 @@ struct ServiceHooks {
   std::function<Result<ServiceDevices>(const Config&)> make_devices;
   // Fits the session's reflectance model from its radiance maps (after capture, process).
   // Optional: without it jobs stop at the radiance maps.
-  std::function<Status(const Session&)> fit_model;
+  // The maps in memory (may be null: read the files) from the run that merged them.
+  std::function<Status(const Session&, const MapStore*)> fit_model;
 };
 
 struct ServiceOptions {
@@ -131,7 +136,7 @@ class CaptureService {
   void RunJob(JobInfo& job);
   void RunCapture(JobInfo& job, Session& session);
   void RunProcess(JobInfo& job, Session& session);
-  void Fit(JobInfo& job, Session& session);
+  void Fit(JobInfo& job, Session& session, const MapStore* maps);
   void Watch(const fs::path& session);  // mu_ held
   double Now() const;
   JobInfo* Running();  // mu_ held

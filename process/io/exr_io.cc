@@ -125,6 +125,8 @@ Status CheckHeaderSizes(const std::string& path) {
 
 }  // namespace
 
+void SetExrThreads(int threads) { EnsureGlobalThreads(std::max(threads, 1)); }
+
 Status WriteExrStriped(const std::string& path, int width, int height,
                        const std::vector<std::string>& channel_names,
                        const std::map<std::string, std::string>& attributes, ExrPixelType type,

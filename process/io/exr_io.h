@@ -55,4 +55,8 @@ Result<cv::Mat> ReadRgbExr(const std::string& path,
                            std::map<std::string, std::string>* attributes = nullptr,
                            int threads = 2);
 
+// Sizes OpenEXR's global thread pool (line-block compression and decompression) to at least
+// one thread per `threads`; changed only when the count changes.
+void SetExrThreads(int threads);
+
 }  // namespace rig

@@ -8,7 +8,11 @@
 #include <atomic>
 #include <chrono>
 #include <filesystem>
+#include <condition_variable>
+#include <map>
 #include <memory>
+#include <mutex>
+#include <thread>
 
 #include <Iex.h>
 #include <ImfChannelList.h>
@@ -26,7 +30,7 @@ namespace rig {
 namespace {
 
 // The maps, open, read band by band into CV_32FC3 BGR and CV_8U validity.
-class BandReader {
+class BandReader : public MapBands {
  public:
   Status Open(const std::vector<std::string>& paths) {
     for (const auto& p : paths) {
@@ -52,14 +56,17 @@ class BandReader {
     }
     return Ok();
   }
-  int width() const { return width_; }
-  int height() const { return height_; }
-  bool any_flags() const {
+  int width() const override { return width_; }
+  int height() const override { return height_; }
+  size_t count() const override { return files_.size(); }
+  bool any_flags() const override {
     return std::any_of(has_flags_.begin(), has_flags_.end(), [](bool b) { return b; });
   }
+  // One InputFile per map, read from one thread at a time.
+  bool concurrent() const override { return false; }
 
   // Rows [y0, y1) of every map.
-  void Read(int y0, int y1, std::vector<cv::Mat>* bgr, std::vector<cv::Mat>* valid) {
+  Status Read(int y0, int y1, std::vector<cv::Mat>* bgr, std::vector<cv::Mat>* valid) override {
     const int rows = y1 - y0;
     bgr->resize(files_.size());
     valid->resize(any_flags() ? files_.size() : 0);
@@ -89,6 +96,7 @@ class BandReader {
                                     : cv::Mat(rows, width_, CV_8U, cv::Scalar(1));
       }
     }
+    return Ok();
   }
 
  private:
@@ -123,10 +131,63 @@ Result<size_t> EstimateSampleBytes(const std::vector<std::string>& paths) {
   return total;
 }
 
+Result<std::unique_ptr<MapBands>> OpenMapFiles(const std::vector<std::string>& paths) {
+  auto reader = std::make_unique<BandReader>();
+  try {
+    RIG_TRY(reader->Open(paths));
+  } catch (const std::exception& e) {
+    return MakeError(ErrorCode::kCorrupt, paths.empty() ? std::string("maps") : paths[0],
+                     "cannot open the radiance maps: {}", e.what());
+  }
+  return std::unique_ptr<MapBands>(std::move(reader));
+}
+
+Result<std::vector<cv::Mat>> ReadPatches(MapBands& maps, const std::array<int, 4>& patch_px) {
+  const cv::Rect r(patch_px[0], patch_px[1], patch_px[2], patch_px[3]);
+  if (r.width <= 0 || r.height <= 0 || (r & cv::Rect(0, 0, maps.width(), maps.height())) != r) {
+    return MakeError(ErrorCode::kInvalidInput, "process.reference_patch_px",
+                     "the patch {}x{}+{}+{} is outside the {}x{} image", r.width, r.height, r.x,
+                     r.y, maps.width(), maps.height());
+  }
+  std::vector<cv::Mat> bgr, valid, crops;
+  try {
+    RIG_TRY(maps.Read(r.y, r.y + r.height, &bgr, &valid));
+  } catch (const std::exception& e) {
+    return MakeError(ErrorCode::kCorrupt, "radiance maps", "cannot read the patch: {}", e.what());
+  }
+  for (const cv::Mat& m : bgr) crops.push_back(m(cv::Rect(r.x, 0, r.width, r.height)).clone());
+  return crops;
+}
+
 Result<StreamFitOutput> FitModelStreaming(const StreamFitInput& in, const FitOptions& o,
                                           const std::string& out_path, ExrPixelType type) {
-  const auto t0 = std::chrono::steady_clock::now();
   const size_t n = in.paths.size();
+  if (n == 0 || in.directions.size() != n) {
+    return MakeError(ErrorCode::kInvalidInput, "fit", "{} maps, {} directions", n,
+                     in.directions.size());
+  }
+  RIG_ASSIGN_OR_RETURN(std::unique_ptr<MapBands> maps, OpenMapFiles(in.paths));
+  return FitModelFromBands(*maps, in, o, out_path, type);
+}
+
+namespace {
+
+// One band's coefficients in the file's pixel type, computed by a worker for the writer.
+struct FittedBand {
+  int y0 = 0, rows = 0;
+  cv::Mat store;        // k rows of BGR-interleaved band data
+  cv::Mat valid_store;  // rows x width, when the model has a "valid" channel
+  MissingStats missing;
+  Status status;
+};
+
+}  // namespace
+
+Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& in,
+                                          const FitOptions& o, const std::string& out_path,
+                                          ExrPixelType type) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const size_t n = maps.count();
   if (n == 0 || in.directions.size() != n) {
     return MakeError(ErrorCode::kInvalidInput, "fit", "{} maps, {} directions", n,
                      in.directions.size());
@@ -134,9 +195,7 @@ Result<StreamFitOutput> FitModelStreaming(const StreamFitInput& in, const FitOpt
   const std::vector<double> weights = in.weights.empty() ? UniformHemisphereWeights(n) : in.weights;
   const std::string tmp = TempPath(out_path);
   try {
-    BandReader reader;
-    RIG_TRY(reader.Open(in.paths));
-    const int w = reader.width(), h = reader.height();
+    const int w = maps.width(), h = maps.height();
     const int band = std::max(1, in.band_rows);
 
     // Pass 1: the Gram matrix of evenly spaced bands chooses order and λ.
@@ -145,17 +204,19 @@ Result<StreamFitOutput> FitModelStreaming(const StreamFitInput& in, const FitOpt
     double count = 0;
     const int bands_total = (h + band - 1) / band;
     const int bands_sel = std::clamp(in.selection_rows / band, 1, bands_total);
-    std::vector<cv::Mat> bgr, valid;
-    SampleMatrix y;
-    std::vector<uint8_t> missing;
-    for (int s = 0; s < bands_sel; ++s) {
-      const int b = static_cast<int>(static_cast<long>(s) * bands_total / bands_sel);
-      const int y0 = b * band, y1 = std::min(h, y0 + band);
-      reader.Read(y0, y1, &bgr, &valid);
-      RIG_TRY(BuildSamples(bgr, valid, in.lamp_radiance_rgb, o.transform, &y, &missing));
-      double c = 0;
-      gram += SampleGram(y, missing, 1, &c);
-      count += c;
+    {
+      std::vector<cv::Mat> bgr, valid;
+      SampleMatrix y;
+      std::vector<uint8_t> missing;
+      for (int s = 0; s < bands_sel; ++s) {
+        const int b = static_cast<int>(static_cast<long>(s) * bands_total / bands_sel);
+        const int y0 = b * band, y1 = std::min(h, y0 + band);
+        RIG_TRY(maps.Read(y0, y1, &bgr, &valid));
+        RIG_TRY(BuildSamples(bgr, valid, in.lamp_radiance_rgb, o.transform, &y, &missing));
+        double c = 0;
+        gram += SampleGram(y, missing, 1, &c);
+        count += c;
+      }
     }
     StreamFitOutput out;
     out.width = w;
@@ -181,8 +242,9 @@ Result<StreamFitOutput> FitModelStreaming(const StreamFitInput& in, const FitOpt
     auto attributes = ModelHeaderAttributes(header_model);
     attributes["flagged_pixels"] = "see the 'valid' channel (streamed fit)";
     const int k = pr.basis.size();
-    const bool with_valid = reader.any_flags();
+    const bool with_valid = maps.any_flags();
     const Imf::PixelType pixel = type == ExrPixelType::kHalf ? Imf::HALF : Imf::FLOAT;
+    const int threads = std::max(1, o.threads);
     Imf::Header header(w, h, 1.0f, Imath::V2f(0, 0), 1.0f, Imf::INCREASING_Y,
                        Imf::ZIP_COMPRESSION);
     for (int t = 0; t < k; ++t)
@@ -191,56 +253,140 @@ Result<StreamFitOutput> FitModelStreaming(const StreamFitInput& in, const FitOpt
     if (with_valid) header.channels().insert("valid", Imf::Channel(pixel));
     for (const auto& [key, value] : attributes) header.insert(key, Imf::StringAttribute(value));
 
-    {
-      Imf::OutputFile file(tmp.c_str(), header, 1);
-      SampleMatrix coeffs;
-      std::vector<uint8_t> valid_px;
-      cv::Mat store, valid_store;
-      ProgressTask task("fitting the model", (h + band - 1) / band);
-      for (int y0 = 0; y0 < h; y0 += band) {
-        task.Advance(1, fmt::format("rows {}-{}", y0, std::min(h, y0 + band) - 1));
-        const int y1 = std::min(h, y0 + band), rows = y1 - y0;
-        reader.Read(y0, y1, &bgr, &valid);
-        RIG_TRY(BuildSamples(bgr, valid, in.lamp_radiance_rgb, o.transform, &y, &missing));
-        MissingStats ms = ApplyProjector(pr, in.directions, weights, o.max_condition, y, missing,
-                                         &coeffs, &valid_px);
-        out.missing.pixels_with_missing += ms.pixels_with_missing;
-        out.missing.flagged += ms.flagged;
-        out.missing.patterns += ms.patterns;
-        // Coefficients (k rows of BGR-interleaved band data) in the file's pixel type.
-        cv::Mat as_float(k, static_cast<int>(coeffs.cols()), CV_32F, coeffs.data());
-        size_t elem = sizeof(float);
-        if (type == ExrPixelType::kHalf) {
-          as_float.convertTo(store, CV_16F);
-          elem = 2;
-        } else {
-          store = as_float;
-        }
-        Imf::FrameBuffer fb;
-        const size_t xs = 3 * elem, ys = xs * w;
-        for (int t = 0; t < k; ++t) {
-          char* row = reinterpret_cast<char*>(store.ptr(t)) -
-                      static_cast<ptrdiff_t>(y0) * static_cast<ptrdiff_t>(ys);
-          fb.insert(CoefficientChannelName(t, 'B'), Imf::Slice(pixel, row, xs, ys));
-          fb.insert(CoefficientChannelName(t, 'G'), Imf::Slice(pixel, row + elem, xs, ys));
-          fb.insert(CoefficientChannelName(t, 'R'), Imf::Slice(pixel, row + 2 * elem, xs, ys));
-        }
-        if (with_valid) {
-          cv::Mat v(rows, w, CV_8U, valid_px.data()), vf;
-          v.convertTo(vf, CV_32F);
-          if (type == ExrPixelType::kHalf) {
-            vf.convertTo(valid_store, CV_16F);
-          } else {
-            valid_store = vf;
-          }
-          fb.insert("valid", Imf::Slice(pixel,
-                                        reinterpret_cast<char*>(valid_store.data) -
-                                            static_cast<ptrdiff_t>(y0) * w * elem,
-                                        elem, elem * w));
-        }
-        file.setFrameBuffer(fb);
-        file.writePixels(rows);
+    // Pass 2: workers fit bands (read, samples, projector, the file's pixel type) at most
+    // `ahead` bands before the writer, which writes them in order; OpenEXR compresses each
+    // band's 16-line blocks on its own thread pool.
+    const int workers = maps.concurrent() ? threads : 1;
+    const int ahead = 2 * workers + 1;
+    std::mutex mu;
+    std::condition_variable cv;
+    std::map<int, FittedBand> done;  // band index -> result, waiting for the writer
+    int next = 0, written = 0;
+    bool stop = false;
+    auto fit_band = [&](int b, FittedBand* r) {
+      r->y0 = b * band;
+      const int y1 = std::min(h, r->y0 + band);
+      r->rows = y1 - r->y0;
+      std::vector<cv::Mat> bgr, valid;
+      SampleMatrix y, coeffs;
+      std::vector<uint8_t> missing, valid_px;
+      try {
+        r->status = maps.Read(r->y0, y1, &bgr, &valid);
+      } catch (const std::exception& e) {
+        r->status = MakeError(ErrorCode::kIo, out_path, "reading rows {}-{}: {}", r->y0, y1 - 1,
+                              e.what());
       }
+      if (r->status.ok()) r->status = BuildSamples(bgr, valid, in.lamp_radiance_rgb, o.transform, &y, &missing);
+      if (!r->status.ok()) return;
+      r->missing = ApplyProjector(pr, in.directions, weights, o.max_condition, y, missing, &coeffs,
+                                  &valid_px);
+      cv::Mat as_float(k, static_cast<int>(coeffs.cols()), CV_32F, coeffs.data());
+      if (type == ExrPixelType::kHalf) {
+        as_float.convertTo(r->store, CV_16F);
+      } else {
+        r->store = as_float.clone();
+      }
+      if (with_valid) {
+        cv::Mat v(r->rows, w, CV_8U, valid_px.data()), vf;
+        v.convertTo(vf, CV_32F);
+        if (type == ExrPixelType::kHalf) {
+          vf.convertTo(r->valid_store, CV_16F);
+        } else {
+          r->valid_store = vf;
+        }
+      }
+    };
+    auto worker = [&] {
+      for (;;) {
+        int b;
+        {
+          std::unique_lock<std::mutex> lock(mu);
+          cv.wait(lock, [&] { return stop || next >= bands_total || next < written + ahead; });
+          if (stop || next >= bands_total) return;
+          b = next++;
+        }
+        FittedBand r;
+        try {
+          fit_band(b, &r);
+        } catch (const std::exception& e) {
+          r.status = MakeError(ErrorCode::kIo, out_path, "fitting rows from {}: {}", b * band,
+                               e.what());
+        }
+        {
+          std::lock_guard<std::mutex> lock(mu);
+          done.emplace(b, std::move(r));
+        }
+        cv.notify_all();
+      }
+    };
+    std::vector<std::thread> pool;
+    Status failed = Ok();
+    SetExrThreads(threads);
+    {
+      Imf::OutputFile file(tmp.c_str(), header, threads);
+      ProgressTask task("fitting the model", bands_total);
+      for (int i = 0; i < workers; ++i) pool.emplace_back(worker);
+      const size_t elem = type == ExrPixelType::kHalf ? 2 : sizeof(float);
+      try {
+        for (int b = 0; b < bands_total; ++b) {
+          FittedBand r;
+          {
+            std::unique_lock<std::mutex> lock(mu);
+            cv.wait(lock, [&] { return done.count(b) > 0; });
+            r = std::move(done.at(b));
+            done.erase(b);
+          }
+          if (!r.status.ok()) {
+            failed = r.status;
+            break;
+          }
+          task.Advance(1, fmt::format("rows {}-{}", r.y0, r.y0 + r.rows - 1));
+          out.missing.pixels_with_missing += r.missing.pixels_with_missing;
+          out.missing.flagged += r.missing.flagged;
+          out.missing.patterns += r.missing.patterns;
+          Imf::FrameBuffer fb;
+          const size_t xs = 3 * elem, ys = xs * w;
+          for (int t = 0; t < k; ++t) {
+            char* row = reinterpret_cast<char*>(r.store.ptr(t)) -
+                        static_cast<ptrdiff_t>(r.y0) * static_cast<ptrdiff_t>(ys);
+            fb.insert(CoefficientChannelName(t, 'B'), Imf::Slice(pixel, row, xs, ys));
+            fb.insert(CoefficientChannelName(t, 'G'), Imf::Slice(pixel, row + elem, xs, ys));
+            fb.insert(CoefficientChannelName(t, 'R'), Imf::Slice(pixel, row + 2 * elem, xs, ys));
+          }
+          if (with_valid) {
+            fb.insert("valid", Imf::Slice(pixel,
+                                          reinterpret_cast<char*>(r.valid_store.data) -
+                                              static_cast<ptrdiff_t>(r.y0) * w * elem,
+                                          elem, elem * w));
+          }
+          file.setFrameBuffer(fb);
+          file.writePixels(r.rows);
+          {
+            std::lock_guard<std::mutex> lock(mu);
+            written = b + 1;
+          }
+          cv.notify_all();
+        }
+      } catch (...) {
+        {
+          std::lock_guard<std::mutex> lock(mu);
+          stop = true;
+        }
+        cv.notify_all();
+        for (auto& t : pool) t.join();
+        throw;
+      }
+      {
+        std::lock_guard<std::mutex> lock(mu);
+        stop = true;
+      }
+      cv.notify_all();
+      for (auto& t : pool) t.join();
+    }
+    if (!failed.ok()) {
+      std::error_code ec;
+      std::filesystem::remove(tmp, ec);
+      return failed.error();
     }
     int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC);
     if (fd >= 0) {
@@ -254,15 +400,11 @@ Result<StreamFitOutput> FitModelStreaming(const StreamFitInput& in, const FitOpt
       return MakeError(ErrorCode::kIo, out_path, "cannot move the written model into place");
     }
     out.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    Log("process")->info("streamed fit {}x{} poses={} order={} terms={} missing_pixels={} "
+    Log("process")->info("band fit {}x{} poses={} order={} terms={} workers={} missing_pixels={} "
                          "flagged={} time_s={:.2f}",
-                         w, h, n, out.selection.order, k, out.missing.pixels_with_missing,
+                         w, h, n, out.selection.order, k, workers, out.missing.pixels_with_missing,
                          out.missing.flagged, out.time_s);
     return out;
-  } catch (const Iex::BaseExc& e) {
-    std::error_code ec;
-    std::filesystem::remove(tmp, ec);
-    return MakeError(ErrorCode::kIo, out_path, "streamed fit failed: {}", e.what());
   } catch (const std::exception& e) {
     std::error_code ec;
     std::filesystem::remove(tmp, ec);

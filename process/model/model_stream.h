@@ -1,9 +1,11 @@
-// Fitting a model to radiance maps too large for memory: row bands are read from every map
-// (OpenEXR scanline ranges), fitted with the shared matrix and written band by band, so the
-// peak memory is a few bands, not the session (24 MP x 40 poses x RGB float is 11.5 GB).
+// Fitting a model to radiance maps band by band: row bands are read from every map (from the
+// EXR files, as OpenEXR scanline ranges, or from maps held in memory as they arrived: see
+// map_store.h), fitted with the shared matrix and written band by band, so the peak memory
+// beyond the maps' own is a few bands (24 MP x 40 poses x RGB float is 11.5 GB).
 #pragma once
 
 #include <array>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -32,6 +34,29 @@ struct StreamFitOutput {
   int width = 0, height = 0;  // of the maps and the model
 };
 
+// Where a band-wise fit reads its maps: rows [y0, y1) of every map, as CV_32FC3 BGR radiance
+// and, when some map has a "flags" channel, CV_8U validity per map (1 = valid).
+class MapBands {
+ public:
+  virtual ~MapBands() = default;
+  virtual int width() const = 0;
+  virtual int height() const = 0;
+  virtual size_t count() const = 0;
+  virtual bool any_flags() const = 0;
+  // Whether Read may be called from several threads at once (for different bands).
+  virtual bool concurrent() const = 0;
+  // Throws only what OpenEXR throws (caught by the fit); other failures are a Status.
+  virtual Status Read(int y0, int y1, std::vector<cv::Mat>* bgr, std::vector<cv::Mat>* valid) = 0;
+};
+
+// The maps of `paths` read from their EXR files (R, G, B; optional "flags", 0 = valid); all
+// of one size.
+Result<std::unique_ptr<MapBands>> OpenMapFiles(const std::vector<std::string>& paths);
+
+// The patch (x, y, width, height) of every map, as the CV_32FC3 crops CalibrateLampRadiance
+// takes; a patch outside the maps is an error naming process.reference_patch_px.
+Result<std::vector<cv::Mat>> ReadPatches(MapBands& maps, const std::array<int, 4>& patch_px);
+
 // Bytes the in-memory fit would hold for the samples (width x height x 3 x 4 x maps), from
 // the headers only.
 Result<size_t> EstimateSampleBytes(const std::vector<std::string>& paths);
@@ -41,5 +66,13 @@ Result<size_t> EstimateSampleBytes(const std::vector<std::string>& paths);
 // "valid" channel whenever some input has a "flags" channel.
 Result<StreamFitOutput> FitModelStreaming(const StreamFitInput& input, const FitOptions& options,
                                           const std::string& out_path, ExrPixelType type);
+
+// The same fit from any band source (input.paths is not used): the same bands choose order
+// and λ and the same arithmetic fits every band, so a fit from maps held in memory equals the
+// fit from their files bit for bit. Bands are computed by options.threads workers when the
+// source allows concurrent reads (else one), beside the writer that compresses the file.
+Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& input,
+                                          const FitOptions& options, const std::string& out_path,
+                                          ExrPixelType type);
 
 }  // namespace rig

@@ -33,7 +33,9 @@ ServiceHooks DaemonHooks() {
     d.owner = owned;
     return d;
   };
-  h.fit_model = [](const Session& session) { return FitSessionModel(session); };
+  h.fit_model = [](const Session& session, const MapStore* maps) {
+    return FitSessionModel(session, maps);
+  };
   return h;
 }
 

@@ -46,6 +46,10 @@ int RunProcess(int argc, char** argv) {
   }
   Config config = session->config();
   HdrStage stage(session->layout(), config);
+  // Every map (merged now or up to date) kept in memory for the model: no map read back.
+  MapStore maps(config.process.hdr_pixel_type == "half" ? ExrPixelType::kHalf : ExrPixelType::kFloat,
+                jobs->size(), MapStore::DefaultMaxBytes());
+  if (!hdr_only) stage.set_map_store(&maps);
   stage.set_skip_up_to_date(!force);
   std::optional<ProgressTask> task(std::in_place, "radiance maps", static_cast<int64_t>(jobs->size()));
   stage.set_on_pose([&](const std::string& pose) { task->Advance(1, "pose " + pose); });
@@ -61,7 +65,7 @@ int RunProcess(int argc, char** argv) {
   for (const auto& [pose, err] : s.failed) std::fprintf(stderr, "rig process: pose %s: %s\n", pose.c_str(), err.c_str());
   int rc = s.failed.empty() ? 0 : 1;
   if (!hdr_only) {
-    Status fit = FitSessionModel(*session);
+    Status fit = FitSessionModel(*session, &maps);
     if (!fit.ok()) rc = ReportError("process", fit.error()) == 2 ? 2 : 1;
   }
   return rc;

@@ -1,6 +1,7 @@
 // Running a session end to end: devices, ground truth, capture daemon, model, summary.
 #include "rig/commands/session_run.h"
 
+#include <chrono>
 #include <cstdio>
 
 #include "config/console.h"
@@ -30,6 +31,7 @@ int RunSession(Session& session, bool resuming, bool process, bool progress) {
   CaptureDaemon daemon(session, *devices->camera, *devices->motor, *devices->lamp, options);
   CaptureSummary summary;
   Status st = daemon.Run(&summary);
+  const auto t_last = std::chrono::steady_clock::now();
   std::printf("%s\n", summary.ToString().c_str());
   if (!st.ok()) {
     // A first run that stored nothing (no camera found, a wrong port) leaves no session
@@ -49,7 +51,13 @@ int RunSession(Session& session, bool resuming, bool process, bool progress) {
   }
   int rc = summary.processing.failed.empty() ? 0 : 1;
   if (process && rc == 0) {
-    Status fit = FitSessionModel(session);
+    Status fit = FitSessionModel(session, daemon.map_store().get());
+    if (fit.ok()) {
+      Log("session")->info("model written {:.2f} s after the capture's end (the processing tail "
+                           "included: {:.2f} s)",
+                           std::chrono::duration<double>(std::chrono::steady_clock::now() - t_last).count(),
+                           summary.processing_tail_s);
+    }
     if (!fit.ok()) {
       ReportError("process", fit.error());
       rc = 1;
@@ -76,18 +84,20 @@ std::string FitSpaceUnit(const std::string& space) {
 
 }  // namespace
 
-Status FitSessionModel(const Session& session) {
+Status FitSessionModel(const Session& session, const MapStore* maps) {
   auto log = Log("process");
   const Config& config = session.config();
   const SessionLayout& layout = session.layout();
   StreamFitInput in;
   std::vector<double> h, v;
+  std::vector<std::string> keys;
   for (const Pose& p : PlanGrid(config.grid)) {
     fs::path path = layout.Hdr(p.Name());
     if (!fs::exists(path)) {
       log->warn("pose={} has no radiance map; the model is fitted without it", p.Name());
       continue;
     }
+    keys.push_back(p.Name());
     in.paths.push_back(path.string());
     in.directions.push_back(LightDirection(p.h_deg, p.v_deg, config.light_frame));
     h.push_back(p.h_deg);
@@ -99,19 +109,27 @@ Status FitSessionModel(const Session& session) {
   in.weights = GridQuadratureWeights(h, v);
   in.light_frame = config.light_frame;
   in.lamp_radiance_rgb = config.lamp.radiance_rgb;
+  // The maps in memory when every one is held (the session's run kept them as they were
+  // merged), else the files.
+  std::unique_ptr<MapBands> bands;
+  std::string source = "the radiance map files";
+  if (maps != nullptr) {
+    if (maps->off()) {
+      log->info("the model is fitted from the files: {}", maps->off_reason());
+    } else if (auto b = maps->Bands(keys); b.ok()) {
+      bands = std::move(b).value();
+      source = "the maps in memory";
+    } else {
+      log->info("the model is fitted from the files: {}", b.error().ToString());
+    }
+  }
+  if (!bands) {
+    RIG_ASSIGN_OR_RETURN(bands, OpenMapFiles(in.paths));
+  }
   const auto& patch = config.process.reference_patch_px;
   if (patch[2] > 0 && patch[3] > 0) {
-    // Lamp radiance from the reference patch: only the patch of each map is kept in memory.
-    std::vector<cv::Mat> crops;
-    for (const auto& p : in.paths) {
-      RIG_ASSIGN_OR_RETURN(cv::Mat m, ReadRgbExr(p));
-      cv::Rect r(patch[0], patch[1], patch[2], patch[3]);
-      if ((r & cv::Rect(0, 0, m.cols, m.rows)) != r)
-        return MakeError(ErrorCode::kInvalidInput, "process.reference_patch_px",
-                         "the patch {}x{}+{}+{} is outside the {}x{} image", r.width, r.height,
-                         r.x, r.y, m.cols, m.rows);
-      crops.push_back(m(r).clone());
-    }
+    // Lamp radiance from the reference patch: only the patch of each map is read.
+    RIG_ASSIGN_OR_RETURN(std::vector<cv::Mat> crops, ReadPatches(*bands, patch));
     RIG_ASSIGN_OR_RETURN(in.lamp_radiance_rgb,
                          CalibrateLampRadiance(crops, {0, 0, patch[2], patch[3]},
                                                config.process.reference_reflectance));
@@ -125,7 +143,8 @@ Status FitSessionModel(const Session& session) {
   // model/ inside the session, never through a link.
   RIG_ASSIGN_OR_RETURN(fs::path model_dir, EnsureSessionFolder(layout.root, "model"));
   fs::path out = model_dir / "model.exr";
-  RIG_ASSIGN_OR_RETURN(StreamFitOutput fit, FitModelStreaming(in, options, out.string(), type));
+  RIG_ASSIGN_OR_RETURN(StreamFitOutput fit, FitModelFromBands(*bands, in, options, out.string(), type));
+  log->info("model fitted from {}", source);
   // What each order costs and gives, beside the model, and its size on disk.
   const auto model_bytes = fs::file_size(out, ec);
   const double pixels = static_cast<double>(fit.width) * static_cast<double>(fit.height);

@@ -2,6 +2,7 @@
 #pragma once
 
 #include "capture/session/session_store.h"
+#include "process/model/map_store.h"
 
 namespace rig {
 
@@ -9,7 +10,9 @@ namespace rig {
 // 128 + signal when stopped by SIGINT/SIGTERM.
 int RunSession(Session& session, bool resuming, bool process, bool progress);
 
-// Fits the session's reflectance model from its radiance maps (model/model.exr).
-Status FitSessionModel(const Session& session);
+// Fits the session's reflectance model from its radiance maps (model/model.exr): from `maps`
+// when it holds every map the session has (the maps kept as they were merged: no map is read
+// back), else from the files. Both give the same model.
+Status FitSessionModel(const Session& session, const MapStore* maps = nullptr);
 
 }  // namespace rig
