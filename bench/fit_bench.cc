@@ -9,6 +9,7 @@
 // the moment the last map is in, beside the fit from the files, and the two models compared.
 //
 //   build/bench/fit_bench [--max-mp 6] [--dir /tmp] [--only-last-frame]
+//                         [--scenes smooth,glossy] [--compressions zip,none]
 #include <spawn.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -35,6 +36,7 @@
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
+#include <ImfOutputFile.h>
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
@@ -122,6 +124,27 @@ cv::Mat GlossyMap(const cv::Mat& nx, const cv::Mat& ny, const cv::Mat& nz, const
   return rgb;
 }
 
+// Writes `image` (every channel as half) with one compression; returns seconds.
+double WriteWith(const rig::ExrImage& image, const std::string& path, Imf::Compression c, int zip_level) {
+  const auto t = Clock::now();
+  Imf::Header header(image.width, image.height, 1.0f, Imath::V2f(0, 0), 1.0f, Imf::INCREASING_Y, c);
+  if (zip_level > 0) header.zipCompressionLevel() = zip_level;
+  std::vector<cv::Mat> halves(image.channels.size());
+  Imf::FrameBuffer fb;
+  for (size_t i = 0; i < image.channels.size(); ++i) {
+    header.channels().insert(image.channel_names[i], Imf::Channel(Imf::HALF));
+    image.channels[i].convertTo(halves[i], CV_16F);
+    fb.insert(image.channel_names[i], Imf::Slice(Imf::HALF, reinterpret_cast<char*>(halves[i].data), 2,
+                                                 2 * size_t(image.width)));
+  }
+  {
+    Imf::OutputFile out(path.c_str(), header, 2);
+    out.setFrameBuffer(fb);
+    out.writePixels(image.height);
+  }
+  return Seconds(t);
+}
+
 }  // namespace
 
 // The child: fits the session in `folder` (a separate process, started with exec, so that
@@ -167,6 +190,20 @@ int main(int argc, char** argv) {
   }
   int max_mp = 6;
   bool only_last_frame = false;
+  std::vector<std::string> scenes = {"smooth", "glossy"}, compressions = {"zip", "none"};
+  auto split = [](const std::string& list) {
+    std::vector<std::string> out;
+    std::string item;
+    for (char c : list + ",") {
+      if (c != ',') {
+        item += c;
+      } else if (!item.empty()) {
+        out.push_back(item);
+        item.clear();
+      }
+    }
+    return out;
+  };
   std::string dir = fs::temp_directory_path().string();
   for (int i = 1; i < argc; ++i) {
     const std::string k = argv[i];
@@ -177,8 +214,10 @@ int main(int argc, char** argv) {
     if (i + 1 >= argc) break;
     if (k == "--max-mp") max_mp = std::atoi(argv[++i]);
     if (k == "--dir") dir = argv[++i];
+    if (k == "--scenes") scenes = split(argv[++i]);
+    if (k == "--compressions") compressions = split(argv[++i]);
   }
-  rig::SetLogLevel("warn");
+  rig::SetLogLevel(std::getenv("RIG_LOG_LEVEL") ? "" : "warn");
   std::vector<double> hs, vs;
   const auto dirs = GridDirections(&hs, &vs);
   const auto weights = rig::GridQuadratureWeights(hs, vs);
@@ -255,65 +294,113 @@ int main(int argc, char** argv) {
   }
 
   // ---- (3) the model at the last frame ----
-  std::printf("\nthe model at the last frame: a glossy 40-pose session, maps written as half EXRs and "
-              "kept in memory as they arrive\n(order auto, rls, 2 threads; 'after last map': from the "
-              "last map in memory to the model renamed into place)\n");
-  std::printf("  %-8s %6s %10s %12s %16s %14s %12s %12s\n", "size", "terms", "keep s/map",
-              "store GB", "after last map s", "from files s", "max |diff|", "peak RSS MB");
+  std::printf("\nthe model at the last frame: 40-pose sessions, maps written as half EXRs and kept in "
+              "memory as they arrive (order auto, rls, 2 threads;\n'after last map': from the last map "
+              "in memory to the model renamed into place; 'from files': the same fit reading the "
+              "maps back)\n");
+  std::printf("  %-7s %-7s %-9s %6s %10s %9s %16s %13s %11s %12s\n", "size", "scene", "model file",
+              "terms", "keep s/map", "store GB", "after last map s", "from files s", "max |diff|",
+              "peak RSS MB");
   for (int mp : {1, 6, 24}) {
     if (mp > max_mp) break;
     const int width = mp == 1 ? 1200 : mp == 6 ? 3000 : 6000;
     const int height = mp == 1 ? 834 : mp == 6 ? 2000 : 4000;
-    const fs::path folder = fs::path(dir) / ("rig_fit_bench_last_" + std::to_string(mp) + "mp_" + std::to_string(getpid()));
-    fs::create_directories(folder);
-    cv::Mat nx(height, width, CV_32F), ny(height, width, CV_32F), nz;
-    cv::randu(nx, -0.5, 0.5);
-    cv::randu(ny, -0.5, 0.5);
-    cv::sqrt(1.0f - nx.mul(nx) - ny.mul(ny), nz);
-    rig::MapStore store(rig::ExrPixelType::kHalf, dirs.size(), rig::MapStore::DefaultMaxBytes());
-    rig::StreamFitInput in;
-    in.directions = dirs;
-    in.weights = weights;
-    std::vector<std::string> keys;
-    double keep_s = 0;
-    for (int i = 0; i < poses; ++i) {
-      const cv::Mat rgb = GlossyMap(nx, ny, nz, dirs[i]);
-      const std::string p = (folder / ("pose" + std::to_string(i) + ".exr")).string();
-      if (!rig::WriteRgbExr(p, rgb, {}, rig::ExrPixelType::kHalf).ok()) return 1;
-      const auto t = Clock::now();
-      if (!store.Add("pose" + std::to_string(i), rgb, cv::Mat()).ok()) return 1;
-      keep_s += Seconds(t);
-      in.paths.push_back(p);
-      keys.push_back("pose" + std::to_string(i));
-    }
-    if (store.off()) {
-      std::printf("  %-8s the maps do not fit in memory here: %s\n", (std::to_string(mp) + " MP").c_str(),
-                  store.off_reason().c_str());
+    for (const std::string& scene : scenes) {
+      const fs::path folder = fs::path(dir) / ("rig_fit_bench_last_" + std::to_string(mp) + "mp_" + std::to_string(getpid()));
+      fs::create_directories(folder);
+      cv::Mat nx(height, width, CV_32F), ny(height, width, CV_32F), nz;
+      cv::randu(nx, -0.5, 0.5);
+      cv::randu(ny, -0.5, 0.5);
+      cv::sqrt(1.0f - nx.mul(nx) - ny.mul(ny), nz);
+      rig::MapStore store(rig::ExrPixelType::kHalf, dirs.size(), rig::MapStore::DefaultMaxBytes());
+      rig::StreamFitInput in;
+      in.directions = dirs;
+      in.weights = weights;
+      std::vector<std::string> keys;
+      double keep_s = 0;
+      for (int i = 0; i < poses; ++i) {
+        // "smooth": the scene of the streamed-fit table above; "glossy": a Phong lobe on top.
+        cv::Mat rgb;
+        if (scene == "smooth") {
+          cv::Mat r = 0.5f + nx * static_cast<float>(dirs[i][0]) + ny * static_cast<float>(dirs[i][1]);
+          cv::merge(std::vector<cv::Mat>{r, r * 0.9f, r * 0.8f}, rgb);
+        } else {
+          rgb = GlossyMap(nx, ny, nz, dirs[i]);
+        }
+        const std::string p = (folder / ("pose" + std::to_string(i) + ".exr")).string();
+        if (!rig::WriteRgbExr(p, rgb, {}, rig::ExrPixelType::kHalf).ok()) return 1;
+        const auto t = Clock::now();
+        if (!store.Add("pose" + std::to_string(i), rgb, cv::Mat()).ok()) return 1;
+        keep_s += Seconds(t);
+        in.paths.push_back(p);
+        keys.push_back("pose" + std::to_string(i));
+      }
+      if (store.off()) {
+        std::printf("  %-7s the maps do not fit in memory here: %s\n", (std::to_string(mp) + " MP").c_str(),
+                    store.off_reason().c_str());
+        fs::remove_all(folder);
+        continue;
+      }
+      rig::FitOptions o;
+      o.threads = 2;
+      for (const std::string& compression : compressions) {
+        in.compression = compression;
+        const std::string from_memory = (folder / "memory.exr").string(), from_files = (folder / "files.exr").string();
+        auto t = Clock::now();
+        auto bands = store.Bands(keys);
+        if (!bands.ok()) return 1;
+        auto mem = rig::FitModelFromBands(**bands, in, o, from_memory, rig::ExrPixelType::kHalf);
+        const double after_last = Seconds(t);
+        if (!mem.ok()) {
+          std::fprintf(stderr, "%s\n", mem.error().ToString().c_str());
+          return 1;
+        }
+        t = Clock::now();
+        auto files = rig::FitModelStreaming(in, o, from_files, rig::ExrPixelType::kHalf);
+        const double batch = Seconds(t);
+        if (!files.ok()) return 1;
+        const double diff = MaxDifference(from_memory, from_files);
+        std::printf("  %-7s %-7s %-9s %6d %10.3f %9.2f %16.2f %13.2f %11.3g %12.0f\n",
+                    (std::to_string(mp) + " MP").c_str(), scene.c_str(), compression.c_str(),
+                    mem->selection.projector.basis.size(), keep_s / poses, store.bytes() / 1e9,
+                    after_last, batch, diff, PeakRssMb());
+        std::fflush(stdout);
+        fs::remove(from_files);
+      }
+      const std::string from_memory = (folder / "memory.exr").string();
+      if (mp == 1 && scene == scenes.back()) {
+        // What the model's compression costs: the same coefficients written with each of
+        // OpenEXR's lossless compressions for half (2 threads), and read back.
+        auto model = rig::ReadExr(from_memory, 2);
+        if (!model.ok()) return 1;
+        std::printf("\n  the 1 MP model (%zu half channels) written with each lossless compression, 2 threads:\n",
+                    model->channels.size());
+        std::printf("  %-14s %10s %10s %10s %10s\n", "compression", "MB", "write s", "MB/s in", "read s");
+        const double raw_mb = double(model->width) * model->height * model->channels.size() * 2 / 1e6;
+        const struct {
+          const char* name;
+          Imf::Compression c;
+          int level;
+        } kinds[] = {{"none", Imf::NO_COMPRESSION, 0}, {"rle", Imf::RLE_COMPRESSION, 0},
+                     {"zips", Imf::ZIPS_COMPRESSION, 0}, {"zip", Imf::ZIP_COMPRESSION, 0},
+                     {"zip level 1", Imf::ZIP_COMPRESSION, 1}, {"zip level 4", Imf::ZIP_COMPRESSION, 4},
+                     {"piz", Imf::PIZ_COMPRESSION, 0}, {"pxr24", Imf::PXR24_COMPRESSION, 0}};
+        const std::string out = (folder / "compressed.exr").string();
+        rig::SetExrThreads(2);
+        for (const auto& k : kinds) {
+          double w = 1e30, r = 1e30;
+          for (int rep = 0; rep < 2; ++rep) {
+            w = std::min(w, WriteWith(*model, out, k.c, k.level));
+            const auto t0 = Clock::now();
+            if (!rig::ReadExr(out, 2).ok()) return 1;
+            r = std::min(r, Seconds(t0));
+          }
+          std::printf("  %-14s %10.1f %10.3f %10.0f %10.3f\n", k.name, fs::file_size(out) / 1e6, w,
+                      raw_mb / w, r);
+        }
+      }
       fs::remove_all(folder);
-      continue;
     }
-    rig::FitOptions o;
-    o.threads = 2;
-    const std::string from_memory = (folder / "memory.exr").string(), from_files = (folder / "files.exr").string();
-    auto t = Clock::now();
-    auto bands = store.Bands(keys);
-    if (!bands.ok()) return 1;
-    auto mem = rig::FitModelFromBands(**bands, in, o, from_memory, rig::ExrPixelType::kHalf);
-    const double after_last = Seconds(t);
-    if (!mem.ok()) {
-      std::fprintf(stderr, "%s\n", mem.error().ToString().c_str());
-      return 1;
-    }
-    t = Clock::now();
-    auto files = rig::FitModelStreaming(in, o, from_files, rig::ExrPixelType::kHalf);
-    const double batch = Seconds(t);
-    if (!files.ok()) return 1;
-    const double diff = MaxDifference(from_memory, from_files);
-    std::printf("  %-8s %6d %10.3f %12.2f %16.2f %14.2f %12.3g %12.0f\n", (std::to_string(mp) + " MP").c_str(),
-                mem->selection.projector.basis.size(), keep_s / poses, store.bytes() / 1e9, after_last,
-                batch, diff, PeakRssMb());
-    std::fflush(stdout);
-    fs::remove_all(folder);
   }
   return 0;
 }

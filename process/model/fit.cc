@@ -411,29 +411,49 @@ Status BuildSamples(const std::vector<cv::Mat>& radiance, const std::vector<cv::
   // BGR order in memory; lamp radiance is R, G, B.
   const float inv[3] = {static_cast<float>(1.0 / e_rgb[2]), static_cast<float>(1.0 / e_rgb[1]),
                         static_cast<float>(1.0 / e_rgb[0])};
+  // The lamp's 1/E per channel repeated over 24 floats (8 pixels, a whole number of SIMD
+  // registers), so that the scaling is one straight vectorised loop.
+  float pattern[24];
+  for (int k = 0; k < 24; ++k) pattern[k] = inv[k % 3];
+  constexpr float kMax = std::numeric_limits<float>::max();
+  std::vector<uint8_t> bad;
   for (size_t i = 0; i < n; ++i) {
     float* out = samples->row(static_cast<Eigen::Index>(i)).data();
+    bool pose_missing = false;
     for (int y = 0; y < rows; ++y) {
       const float* in = radiance[i].ptr<float>(y);
       const uint8_t* vm = valid.empty() ? nullptr : valid[i].ptr<uint8_t>(y);
       float* o = out + static_cast<size_t>(y) * cols * 3;
+      const size_t values = static_cast<size_t>(cols) * 3;
+      // Every sample scaled by 1/E; the missing ones are set to 0 below.
+      size_t j = 0;
+      for (; j + 24 <= values; j += 24)
+        for (int k = 0; k < 24; ++k) o[j + k] = in[j + k] * pattern[k];
+      for (; j < values; ++j) o[j] = in[j] * inv[j % 3];
+      // A sample is valid when its mask says so and every channel is finite and >= 0
+      // (v >= 0 && v <= FLT_MAX fails for NaN, ±inf and negatives alike): per pixel,
+      // branch-free; the row is walked again only when some sample of it is missing.
+      bad.resize(static_cast<size_t>(cols));
+      uint8_t any_bad = 0;
       for (int x = 0; x < cols; ++x) {
         const float b = in[3 * x], g = in[3 * x + 1], r = in[3 * x + 2];
-        const bool ok = (!vm || vm[x]) && std::isfinite(b) && std::isfinite(g) &&
-                        std::isfinite(r) && b >= 0 && g >= 0 && r >= 0;
-        if (!ok) {
-          if (missing->empty()) missing->assign(n * pixels, 0);
-          (*missing)[i * pixels + static_cast<size_t>(y) * cols + x] = 1;
-          o[3 * x] = o[3 * x + 1] = o[3 * x + 2] = 0;
-        } else {
-          o[3 * x] = b * inv[0];
-          o[3 * x + 1] = g * inv[1];
-          o[3 * x + 2] = r * inv[2];
-        }
+        const bool ok = (b >= 0.f) & (b <= kMax) & (g >= 0.f) & (g <= kMax) & (r >= 0.f) &
+                        (r <= kMax) & (vm == nullptr || vm[x] != 0);
+        bad[static_cast<size_t>(x)] = static_cast<uint8_t>(!ok);
+        any_bad |= static_cast<uint8_t>(!ok);
+      }
+      if (!any_bad) continue;
+      if (missing->empty()) missing->assign(n * pixels, 0);
+      pose_missing = true;
+      uint8_t* mrow = missing->data() + i * pixels + static_cast<size_t>(y) * cols;
+      for (int x = 0; x < cols; ++x) {
+        if (!bad[static_cast<size_t>(x)]) continue;
+        mrow[x] = 1;
+        o[3 * x] = o[3 * x + 1] = o[3 * x + 2] = 0;
       }
     }
     transform.ForwardInPlace(out, pixels * 3);
-    if (!missing->empty()) {
+    if (pose_missing) {
       // Missing samples stay 0 in fit space, whatever the transform maps 0 to.
       const uint8_t* mrow = missing->data() + i * pixels;
       for (size_t p = 0; p < pixels; ++p)

@@ -175,6 +175,7 @@ namespace {
 // One band's coefficients in the file's pixel type, computed by a worker for the writer.
 struct FittedBand {
   int y0 = 0, rows = 0;
+  double read_s = 0, samples_s = 0, project_s = 0;  // this band's stages
   cv::Mat store;        // k rows of BGR-interleaved band data
   cv::Mat valid_store;  // rows x width, when the model has a "valid" channel
   MissingStats missing;
@@ -204,24 +205,50 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
     double count = 0;
     const int bands_total = (h + band - 1) / band;
     const int bands_sel = std::clamp(in.selection_rows / band, 1, bands_total);
+    const int threads = std::max(1, o.threads);
     {
-      std::vector<cv::Mat> bgr, valid;
-      SampleMatrix y;
-      std::vector<uint8_t> missing;
+      // Each band's Gram matrix on its own (by workers when the source allows), then summed
+      // in band order: the same sum, bit for bit, whatever the number of workers.
+      std::vector<Eigen::MatrixXd> grams(static_cast<size_t>(bands_sel));
+      std::vector<double> counts(static_cast<size_t>(bands_sel), 0.0);
+      std::vector<Status> status(static_cast<size_t>(bands_sel), Ok());
+      std::atomic<int> next_sel{0};
+      auto gram_worker = [&] {
+        std::vector<cv::Mat> bgr, valid;
+        SampleMatrix y;
+        std::vector<uint8_t> missing;
+        for (int s; (s = next_sel.fetch_add(1)) < bands_sel;) {
+          const int b = static_cast<int>(static_cast<long>(s) * bands_total / bands_sel);
+          const int y0 = b * band, y1 = std::min(h, y0 + band);
+          Status& st = status[static_cast<size_t>(s)];
+          try {
+            st = maps.Read(y0, y1, &bgr, &valid);
+            if (st.ok()) st = BuildSamples(bgr, valid, in.lamp_radiance_rgb, o.transform, &y, &missing);
+            if (st.ok()) grams[static_cast<size_t>(s)] = SampleGram(y, missing, 1, &counts[static_cast<size_t>(s)]);
+          } catch (const std::exception& e) {
+            st = MakeError(ErrorCode::kIo, out_path, "reading rows {}-{}: {}", y0, y1 - 1, e.what());
+          }
+        }
+      };
+      const int gram_workers = maps.concurrent() ? std::min(threads, bands_sel) : 1;
+      std::vector<std::thread> gram_pool;
+      for (int i = 1; i < gram_workers; ++i) gram_pool.emplace_back(gram_worker);
+      gram_worker();
+      for (auto& t : gram_pool) t.join();
       for (int s = 0; s < bands_sel; ++s) {
-        const int b = static_cast<int>(static_cast<long>(s) * bands_total / bands_sel);
-        const int y0 = b * band, y1 = std::min(h, y0 + band);
-        RIG_TRY(maps.Read(y0, y1, &bgr, &valid));
-        RIG_TRY(BuildSamples(bgr, valid, in.lamp_radiance_rgb, o.transform, &y, &missing));
-        double c = 0;
-        gram += SampleGram(y, missing, 1, &c);
-        count += c;
+        RIG_TRY(status[static_cast<size_t>(s)]);
+        gram += grams[static_cast<size_t>(s)];
+        count += counts[static_cast<size_t>(s)];
       }
     }
     StreamFitOutput out;
     out.width = w;
     out.height = h;
+    const double gram_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     RIG_ASSIGN_OR_RETURN(out.selection, SelectProjector(in.directions, weights, gram, count, o));
+    const double select_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() - gram_s;
+    double read_s = 0, samples_s = 0, project_s = 0, write_s = 0, wait_s = 0;
     const Projector& pr = out.selection.projector;
     for (const auto& r : out.selection.orders)
       if (r.order == out.selection.order) out.loo_rmse = r.loo_rmse;
@@ -244,9 +271,13 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
     const int k = pr.basis.size();
     const bool with_valid = maps.any_flags();
     const Imf::PixelType pixel = type == ExrPixelType::kHalf ? Imf::HALF : Imf::FLOAT;
-    const int threads = std::max(1, o.threads);
-    Imf::Header header(w, h, 1.0f, Imath::V2f(0, 0), 1.0f, Imf::INCREASING_Y,
-                       Imf::ZIP_COMPRESSION);
+    Imf::Compression compression = Imf::ZIP_COMPRESSION;
+    if (in.compression == "none") compression = Imf::NO_COMPRESSION;
+    else if (in.compression == "piz") compression = Imf::PIZ_COMPRESSION;
+    else if (in.compression != "zip" && in.compression != "zip-fast")
+      return MakeError(ErrorCode::kInvalidInput, out_path, "compression '{}'", in.compression);
+    Imf::Header header(w, h, 1.0f, Imath::V2f(0, 0), 1.0f, Imf::INCREASING_Y, compression);
+    if (in.compression == "zip-fast") header.zipCompressionLevel() = 1;
     for (int t = 0; t < k; ++t)
       for (char c : {'R', 'G', 'B'})
         header.channels().insert(CoefficientChannelName(t, c), Imf::Channel(pixel));
@@ -270,13 +301,22 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
       std::vector<cv::Mat> bgr, valid;
       SampleMatrix y, coeffs;
       std::vector<uint8_t> missing, valid_px;
+      auto t = std::chrono::steady_clock::now();
+      auto lap = [&t] {
+        const auto now = std::chrono::steady_clock::now();
+        const double s = std::chrono::duration<double>(now - t).count();
+        t = now;
+        return s;
+      };
       try {
         r->status = maps.Read(r->y0, y1, &bgr, &valid);
       } catch (const std::exception& e) {
         r->status = MakeError(ErrorCode::kIo, out_path, "reading rows {}-{}: {}", r->y0, y1 - 1,
                               e.what());
       }
+      r->read_s = lap();
       if (r->status.ok()) r->status = BuildSamples(bgr, valid, in.lamp_radiance_rgb, o.transform, &y, &missing);
+      r->samples_s = lap();
       if (!r->status.ok()) return;
       r->missing = ApplyProjector(pr, in.directions, weights, o.max_condition, y, missing, &coeffs,
                                   &valid_px);
@@ -295,6 +335,7 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
           r->valid_store = vf;
         }
       }
+      r->project_s = lap();
     };
     auto worker = [&] {
       for (;;) {
@@ -330,6 +371,7 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
       try {
         for (int b = 0; b < bands_total; ++b) {
           FittedBand r;
+          const auto t_wait = std::chrono::steady_clock::now();
           {
             std::unique_lock<std::mutex> lock(mu);
             cv.wait(lock, [&] { return done.count(b) > 0; });
@@ -340,6 +382,11 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
             failed = r.status;
             break;
           }
+          const auto t_write = std::chrono::steady_clock::now();
+          wait_s += std::chrono::duration<double>(t_write - t_wait).count();
+          read_s += r.read_s;
+          samples_s += r.samples_s;
+          project_s += r.project_s;
           task.Advance(1, fmt::format("rows {}-{}", r.y0, r.y0 + r.rows - 1));
           out.missing.pixels_with_missing += r.missing.pixels_with_missing;
           out.missing.flagged += r.missing.flagged;
@@ -361,6 +408,7 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
           }
           file.setFrameBuffer(fb);
           file.writePixels(r.rows);
+          write_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t_write).count();
           {
             std::lock_guard<std::mutex> lock(mu);
             written = b + 1;
@@ -388,11 +436,13 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
       std::filesystem::remove(tmp, ec);
       return failed.error();
     }
+    const auto t_sync = std::chrono::steady_clock::now();
     int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC);
     if (fd >= 0) {
       ::fsync(fd);
       ::close(fd);
     }
+    const double sync_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_sync).count();
     std::error_code ec;
     std::filesystem::rename(tmp, out_path, ec);
     if (ec) {
@@ -401,9 +451,12 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
     }
     out.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     Log("process")->info("band fit {}x{} poses={} order={} terms={} workers={} missing_pixels={} "
-                         "flagged={} time_s={:.2f}",
+                         "flagged={} time_s={:.2f} (gram {:.2f}, selection {:.2f}; summed over "
+                         "workers: read {:.2f}, samples {:.2f}, projection {:.2f}; writer: waited "
+                         "{:.2f}, wrote {:.2f}, fsync {:.2f})",
                          w, h, n, out.selection.order, k, workers, out.missing.pixels_with_missing,
-                         out.missing.flagged, out.time_s);
+                         out.missing.flagged, out.time_s, gram_s, select_s, read_s, samples_s,
+                         project_s, wait_s, write_s, sync_s);
     return out;
   } catch (const std::exception& e) {
     std::error_code ec;

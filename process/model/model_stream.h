@@ -24,6 +24,8 @@ struct StreamFitInput {
   LightFrameConfig light_frame;
   int band_rows = 32;              // rows per band
   int selection_rows = 256;        // rows (in evenly spaced bands) that choose order and λ
+  // The model file's compression (lossless): "zip" | "zip-fast" | "piz" | "none".
+  std::string compression = "zip";
 };
 
 struct StreamFitOutput {
