@@ -2,8 +2,9 @@
 // OpenCV's whole equivalent (cv::imread of each frame, CalibrateDebevec, MergeDebevec,
 // cv::imwrite EXR), each a fresh process on the same JPEG bracket on disk, interleaved in one
 // run. Usage: hdr_job_bench [--width W --height H --frames N --repeat R --threads T]
-//                           [--rig PATH] [--dir DIR] [--ours "ARGS"]... [--keep]
-// Each --ours adds a row: `rig hdr` with those extra arguments (default: one row, no extras).
+//                           [--rig PATH] [--dir DIR] [--ours "ARGS"]... [--before PATH] [--keep]
+// Each --ours adds a row: `rig hdr` with those extra arguments (default: one row, no extras);
+// --before adds a row of another rig executable (e.g. built from an earlier commit), as it is.
 // Internal: hdr_job_bench --opencv-job LIST OUT [--reuse-memory] [--exr-threads N]
 //           [--exr-none] runs OpenCV's job once.
 #include <sys/wait.h>
@@ -148,7 +149,7 @@ int main(int argc, char** argv) {
     return OpenCvJob(argv[2], argv[3], reuse, exr_threads, none);
   }
   int width = 3000, height = 2000, frames = 10, repeat = 5, threads = 2;
-  std::string rig_path, dir;
+  std::string rig_path, dir, before;
   std::vector<std::string> ours_args;
   bool keep = false;
   for (int i = 1; i < argc; ++i) {
@@ -162,11 +163,12 @@ int main(int argc, char** argv) {
     else if (a == "--rig") rig_path = next();
     else if (a == "--dir") dir = next();
     else if (a == "--ours") ours_args.push_back(next());
+    else if (a == "--before") before = next();
     else if (a == "--keep") keep = true;
     else {
       std::fprintf(stderr, "usage: hdr_job_bench [--width W] [--height H] [--frames N] "
                            "[--repeat R] [--threads T] [--rig PATH] [--dir DIR] "
-                           "[--ours \"ARGS\"]... [--keep]\n");
+                           "[--ours \"ARGS\"]... [--before PATH] [--keep]\n");
       return 2;
     }
   }
@@ -205,6 +207,14 @@ int main(int argc, char** argv) {
   }
 
   std::vector<Row> rows;
+  if (!before.empty()) {
+    Row r;
+    r.name = "before: " + fs::path(before).filename().string() + " hdr";
+    r.out = (work / "before.exr").string();
+    r.command = fmt::format("{} hdr --list {} --out {} --threads {}", Quote(before), Quote(list),
+                            Quote(r.out), threads);
+    rows.push_back(r);
+  }
   for (size_t k = 0; k < ours_args.size(); ++k) {
     Row r;
     r.name = ours_args[k].empty() ? "rig hdr" : "rig hdr " + ours_args[k];
