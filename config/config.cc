@@ -446,6 +446,10 @@ void VisitConfig(Config& c, V& v) {
     v.Field("response_samples", p.response_samples, Range{16, 100000});
     v.Field("response_poses", p.response_poses, Range{1, 1000});
     v.Field("hdr_pixel_type", p.hdr_pixel_type, {"half", "float"});
+    // The names of process/io/exr_io.h's ExrCompressionNames() (config is below process; a
+    // test keeps the two lists equal).
+    v.Field("hdr_compression", p.hdr_compression,
+            {"none", "rle", "zips", "zip", "zip-fast", "piz"});
     v.Field("merge_weighting", p.merge_weighting, {"hat", "photon", "noise"});
     v.Field("basis", p.basis, {"sh", "hsh", "ptm"});
     v.Field("fit_method", p.fit_method, {"quadrature", "ls", "rls"});

@@ -122,6 +122,10 @@ struct ProcessConfig {
   int response_samples = 1000;          // pixel locations used for recovery
   int response_poses = 4;               // brackets recovered from jointly
   std::string hdr_pixel_type = "float";  // "half" | "float"
+  // The session's radiance maps: "zip" | "zip-fast" | "piz" | "zips" | "rle" | "none", all
+  // lossless (process/io/exr_io.h, docs/hdr.md). ZIP: the maps are what a session keeps, and
+  // they are written while the arm moves on, so the smallest common choice wins over speed.
+  std::string hdr_compression = "zip";
   std::string merge_weighting = "noise";  // "hat" | "photon" | "noise" (docs/hdr.md)
   // Reflectance model
   std::string basis = "sh";             // "sh" | "hsh" | "ptm"

@@ -248,7 +248,8 @@ void HdrStage::MergeOne(BracketJob& job) {
   Status st = WriteRadianceMap(out.string(), *map,
                                config_.process.hdr_pixel_type == "half" ? ExrPixelType::kHalf
                                                                         : ExrPixelType::kFloat,
-                               config_.process.threads);
+                               config_.process.threads,
+                               *ParseExrCompression(config_.process.hdr_compression));
   summary_.write_s += SecondsSince(t0);
   if (!st.ok()) {
     summary_.failed[name] = st.error().ToString();

@@ -949,7 +949,7 @@ Result<RadianceMap> MergeBracket(std::span<const LdrFrame> frames, const Respons
 }
 
 Status WriteRadianceMap(const std::string& path, const RadianceMap& map, ExrPixelType type,
-                        int threads) {
+                        int threads, ExrCompression compression) {
   if (map.radiance.type() != CV_32FC3 || map.radiance.empty()) {
     return MakeError(ErrorCode::kInvalidInput, path, "radiance must be a non-empty CV_32FC3");
   }
@@ -977,7 +977,7 @@ Status WriteRadianceMap(const std::string& path, const RadianceMap& map, ExrPixe
                                o[4 * x + 3] = f[x];
                              }
                            }
-                         });
+                         }, compression);
 }
 
 Result<ExrPixelType> ParseExrPixelType(const std::string& name) {

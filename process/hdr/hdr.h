@@ -127,7 +127,7 @@ Result<RadianceMap> MergeBracket(std::span<const LdrFrame> frames, const Respons
 
 // Writes R, G, B and a "flags" channel, with the map's attributes in the header.
 Status WriteRadianceMap(const std::string& path, const RadianceMap& map, ExrPixelType type,
-                        int threads);
+                        int threads, ExrCompression compression = ExrCompression::kZip);
 
 // Parses "half" | "float".
 Result<ExrPixelType> ParseExrPixelType(const std::string& name);

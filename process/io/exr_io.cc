@@ -123,14 +123,61 @@ Status CheckHeaderSizes(const std::string& path) {
   return Ok();
 }
 
+Imf::Compression ToImf(ExrCompression c) {
+  switch (c) {
+    case ExrCompression::kNone: return Imf::NO_COMPRESSION;
+    case ExrCompression::kRle: return Imf::RLE_COMPRESSION;
+    case ExrCompression::kZips: return Imf::ZIPS_COMPRESSION;
+    case ExrCompression::kZip: return Imf::ZIP_COMPRESSION;
+    case ExrCompression::kZipFast: return Imf::ZIP_COMPRESSION;
+    case ExrCompression::kPiz: return Imf::PIZ_COMPRESSION;
+  }
+  return Imf::ZIP_COMPRESSION;
+}
+
+constexpr ExrCompression kAllCompressions[] = {ExrCompression::kNone, ExrCompression::kRle,
+                                               ExrCompression::kZips, ExrCompression::kZip,
+                                               ExrCompression::kZipFast, ExrCompression::kPiz};
+
 }  // namespace
 
 void SetExrThreads(int threads) { EnsureGlobalThreads(std::max(threads, 1)); }
 
+const char* ExrCompressionName(ExrCompression c) {
+  switch (c) {
+    case ExrCompression::kNone: return "none";
+    case ExrCompression::kRle: return "rle";
+    case ExrCompression::kZips: return "zips";
+    case ExrCompression::kZip: return "zip";
+    case ExrCompression::kZipFast: return "zip-fast";
+    case ExrCompression::kPiz: return "piz";
+  }
+  return "?";
+}
+
+const std::vector<std::string>& ExrCompressionNames() {
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> v;
+    for (ExrCompression c : kAllCompressions) v.push_back(ExrCompressionName(c));
+    return v;
+  }();
+  return names;
+}
+
+Result<ExrCompression> ParseExrCompression(const std::string& name) {
+  for (ExrCompression c : kAllCompressions) {
+    if (name == ExrCompressionName(c)) return c;
+  }
+  std::string choices;
+  for (const auto& n : ExrCompressionNames()) choices += (choices.empty() ? "" : ", ") + n;
+  return MakeError(ErrorCode::kInvalidInput, "", "EXR compression '{}' (expected one of {})", name,
+                   choices);
+}
+
 Status WriteExrStriped(const std::string& path, int width, int height,
                        const std::vector<std::string>& channel_names,
                        const std::map<std::string, std::string>& attributes, ExrPixelType type,
-                       int threads, const ExrStripeFill& fill) {
+                       int threads, const ExrStripeFill& fill, ExrCompression compression) {
   if (width <= 0 || height <= 0) {
     return MakeError(ErrorCode::kInvalidInput, path, "cannot write an empty image ({}x{})", width,
                      height);
@@ -149,10 +196,12 @@ Status WriteExrStriped(const std::string& path, int width, int height,
   try {
     threads = std::max(threads, 1);
     EnsureGlobalThreads(threads);
-    // ZIP on 16-line blocks: blocks compress independently, so OpenEXR spreads them over the
-    // thread pool; ZIPS (one line per block) compresses worse and is not faster.
+    // Blocks of lines compress independently, so OpenEXR spreads them over the thread pool.
     Imf::Header header(width, height, 1.0f, Imath::V2f(0, 0), 1.0f, Imf::INCREASING_Y,
-                       Imf::ZIP_COMPRESSION);
+                       ToImf(compression));
+    // zlib's level 1 against OpenEXR's 6: a shorter search for matches. On float radiance it
+    // saves only 10-15%: the time goes into coding the noisy low bytes (docs/hdr.md).
+    if (compression == ExrCompression::kZipFast) header.zipCompressionLevel() = 1;
     const Imf::PixelType pixel = type == ExrPixelType::kHalf ? Imf::HALF : Imf::FLOAT;
     for (const auto& name : channel_names) header.channels().insert(name, Imf::Channel(pixel));
     for (const auto& [key, value] : attributes) {
@@ -215,7 +264,7 @@ Status WriteExrStriped(const std::string& path, int width, int height,
 }
 
 Status WriteExr(const std::string& path, const ExrImage& image, ExrPixelType type,
-                int threads) {
+                int threads, ExrCompression compression) {
   if (image.width <= 0 || image.height <= 0) {
     return MakeError(ErrorCode::kInvalidInput, path, "cannot write an empty image ({}x{})",
                      image.width, image.height);
@@ -244,7 +293,7 @@ Status WriteExr(const std::string& path, const ExrImage& image, ExrPixelType typ
                                for (int x = 0; x < image.width; ++x) o[x * nch + i] = src[x];
                              }
                            }
-                         });
+                         }, compression);
 }
 
 Result<std::map<std::string, std::string>> ReadExrAttributes(const std::string& path) {
@@ -332,7 +381,7 @@ Result<ExrImage> ReadExr(const std::string& path, int threads) {
 
 Status WriteRgbExr(const std::string& path, const cv::Mat& bgr,
                    const std::map<std::string, std::string>& attributes, ExrPixelType type,
-                   int threads) {
+                   int threads, ExrCompression compression) {
   if (bgr.type() != CV_32FC3 || bgr.empty()) {
     return MakeError(ErrorCode::kInvalidInput, path,
                      "a radiance image must be a non-empty CV_32FC3 (is type {})", bgr.type());
@@ -345,7 +394,7 @@ Status WriteRgbExr(const std::string& path, const cv::Mat& bgr,
   image.channel_names = {"B", "G", "R"};
   image.channels = planes;
   image.attributes = attributes;
-  return WriteExr(path, image, type, threads);
+  return WriteExr(path, image, type, threads, compression);
 }
 
 Result<cv::Mat> ReadRgbExr(const std::string& path, std::map<std::string, std::string>* attributes,

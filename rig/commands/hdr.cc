@@ -16,6 +16,10 @@ int RunHdr(int argc, char** argv) {
                "comments; relative paths are relative to the LIST's folder).",
                "rig hdr"};
   std::string list, out, response_in, response_out, pixel_type = "float", log_level;
+  // RLE: this command is the quick way to one map; on float radiance it costs a tenth of
+  // ZIP's time for a file about a fifth larger (docs/hdr.md). Sessions keep ZIP
+  // ([process] hdr_compression).
+  std::string compression = "rle";
   std::vector<std::string> attributes;
   bool linear = false;
   ResponseOptions ro;
@@ -41,6 +45,10 @@ int RunHdr(int argc, char** argv) {
       ->check(CLI::IsMember({"hat", "photon", "noise"}));
   app.add_option("--pixel-type", pixel_type, "EXR pixel type")
       ->check(CLI::IsMember({"half", "float"}));
+  app.add_option("--compression", compression,
+                 "EXR compression, all lossless: rle (fast), none (fastest, largest), zip "
+                 "(small, slow), zip-fast (zlib level 1), piz, zips; docs/hdr.md measures each")
+      ->check(CLI::IsMember(ExrCompressionNames()));
   app.add_option("--max-unrecorded", mo.max_unrecorded_fraction,
                  "largest fraction of pixels saturated (or black) in every exposure before the "
                  "bracket is rejected as too short (1: never)")
@@ -117,7 +125,8 @@ int RunHdr(int argc, char** argv) {
 
   t0 = Clock::now();
   auto type = ParseExrPixelType(pixel_type);
-  if (auto s = WriteRadianceMap(out, *map, *type, threads); !s.ok()) {
+  if (auto s = WriteRadianceMap(out, *map, *type, threads, *ParseExrCompression(compression));
+      !s.ok()) {
     return ReportError("hdr", s.error());
   }
   const double write_s = since(t0);

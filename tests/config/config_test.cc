@@ -1,5 +1,6 @@
 // Configuration: every class of bad input gives its own message at its own location.
 #include "config/config.h"
+#include "process/io/exr_io.h"  // the writer's compression names
 
 #include <cstdlib>
 #include <filesystem>
@@ -142,6 +143,24 @@ TEST(Config, InvalidChoiceListsChoicesAndSuggests) {
   auto d = Only(ParseConfig(text, "t.toml"), "camera.backend");
   EXPECT_THAT(d.message, HasSubstr("not one of: sim, gphoto2"));
   EXPECT_THAT(d.message, HasSubstr("did you mean 'gphoto2'?"));
+}
+
+// The session's EXR compression: config (below process) keeps its own list of names; every
+// name the writer knows is accepted, and nothing else.
+TEST(Config, HdrCompressionAcceptsExactlyTheWritersNames) {
+  for (const std::string& name : ExrCompressionNames()) {
+    ConfigResult r = ParseConfig(std::string(kMinimal) + "\n[process]\nhdr_compression = \"" +
+                                     name + "\"\n", "t.toml");
+    ASSERT_TRUE(r.ok()) << name << ": " << r.AsError().ToString();
+    EXPECT_EQ(r.config.process.hdr_compression, name);
+  }
+  EXPECT_EQ(ParseConfig(kMinimal, "t.toml").config.process.hdr_compression, "zip");
+  auto d = Only(ParseConfig(std::string(kMinimal) + "\n[process]\nhdr_compression = \"lzw\"\n",
+                            "t.toml"),
+                "process.hdr_compression");
+  std::string listed;
+  for (const std::string& name : ExrCompressionNames()) listed += (listed.empty() ? "" : ", ") + name;
+  EXPECT_THAT(d.message, HasSubstr("not one of: " + listed));
 }
 
 TEST(Config, AllErrorsAreReportedAtOnceInFileOrder) {

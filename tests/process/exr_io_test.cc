@@ -5,7 +5,12 @@
 #include <filesystem>
 #include <fstream>
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <ImfCompression.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
 
 namespace rig {
 namespace {
@@ -65,6 +70,65 @@ TEST(ExrIo, HalfRoundTripWithinHalfPrecision) {
   EXPECT_GT(max_rel, 0.0);       // it really was stored as half
   EXPECT_LT(max_rel, 1.0 / 1024);  // 10-bit mantissa
   fs::remove_all(dir);
+}
+
+// The compression the file's header says its pixels are stored with.
+Imf::Compression StoredCompression(const std::string& path) {
+  Imf::InputFile in(path.c_str());
+  return in.header().compression();
+}
+
+TEST(ExrIo, EveryCompressionIsLosslessAndIsTheOneInTheHeader) {
+  fs::path dir = TempDir();
+  // Several decades times noise (no easy case for the predictors), an odd width and a height
+  // that is no multiple of any codec's block of lines (16 for ZIP, 32 for PIZ).
+  cv::Mat img = TestImage(203, 71), noise(71, 203, CV_32FC3);
+  cv::randu(noise, 0.5, 1.5);
+  img = img.mul(noise);
+  cv::Mat as_half, half_rounded;  // what a half file must read back as: the nearest half
+  img.convertTo(as_half, CV_16F);
+  as_half.convertTo(half_rounded, CV_32F);
+  ASSERT_GT(cv::norm(half_rounded, img, cv::NORM_INF), 0.0);
+  const std::map<std::string, Imf::Compression> expected = {
+      {"none", Imf::NO_COMPRESSION}, {"rle", Imf::RLE_COMPRESSION},
+      {"zips", Imf::ZIPS_COMPRESSION}, {"zip", Imf::ZIP_COMPRESSION},
+      {"zip-fast", Imf::ZIP_COMPRESSION}, {"piz", Imf::PIZ_COMPRESSION}};
+  ASSERT_EQ(ExrCompressionNames().size(), expected.size());
+  std::map<std::string, uintmax_t> float_size;
+  for (const std::string& name : ExrCompressionNames()) {
+    auto c = ParseExrCompression(name);
+    ASSERT_TRUE(c.ok()) << name;
+    EXPECT_STREQ(ExrCompressionName(*c), name.c_str());
+    for (auto type : {ExrPixelType::kFloat, ExrPixelType::kHalf}) {
+      const bool half = type == ExrPixelType::kHalf;
+      const std::string path = (dir / (name + (half ? "_half.exr" : "_float.exr"))).string();
+      auto w = WriteRgbExr(path, img, {{"k", "v"}}, type, 2, *c);
+      ASSERT_TRUE(w.ok()) << name << ": " << w.error().ToString();
+      EXPECT_EQ(StoredCompression(path), expected.at(name)) << name;
+      std::map<std::string, std::string> attrs;
+      auto r = ReadRgbExr(path, &attrs, 2);
+      ASSERT_TRUE(r.ok()) << name << ": " << r.error().ToString();
+      EXPECT_EQ(cv::norm(*r, half ? half_rounded : img, cv::NORM_INF), 0.0)
+          << name << (half ? " half" : " float");
+      EXPECT_EQ(attrs.at("k"), "v");
+      if (!half) float_size[name] = fs::file_size(path);
+    }
+  }
+  // The codecs really differ: noisy floats barely shrink without compression; zlib level 1 is
+  // another encoding of the same pixels than level 6.
+  EXPECT_GT(float_size["none"], 203u * 71 * 3 * 4);
+  EXPECT_LT(float_size["zip"], float_size["none"]);
+  EXPECT_LT(float_size["piz"], float_size["none"]);
+  EXPECT_NE(float_size["zip-fast"], float_size["zip"]);
+  fs::remove_all(dir);
+}
+
+TEST(ExrIo, UnknownCompressionIsAnErrorListingTheChoices) {
+  auto c = ParseExrCompression("lzw");
+  ASSERT_FALSE(c.ok());
+  EXPECT_THAT(c.error().ToString(), ::testing::HasSubstr("'lzw'"));
+  EXPECT_THAT(c.error().ToString(),
+              ::testing::HasSubstr("none, rle, zips, zip, zip-fast, piz"));
 }
 
 TEST(ExrIo, GenericChannelsKeepNamesAndValues) {

@@ -10,6 +10,10 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include <ImfCompression.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
+
 #include "process/io/exr_io.h"
 #include "tests/support/run_rig.h"
 
@@ -86,6 +90,39 @@ TEST_F(HdrCommands, MergesAListWithRelativePathsIntoAnExrWithItsHeader) {
   ASSERT_TRUE(hat_img.ok());
   EXPECT_EQ(hat_img->attributes.at("merge_weighting"), "hat");
   EXPECT_EQ(RunRig("hdr --list " + WriteList("ok") + " --out " + hat + " --weighting best").status, 2);
+}
+
+TEST_F(HdrCommands, CompressionOptionIsTheFilesAndLeavesThePixelsAlone) {
+  auto stored = [](const std::string& path) {
+    Imf::InputFile in(path.c_str());
+    return in.header().compression();
+  };
+  const std::string list = WriteList("compression");
+  const std::string def = *dir_ + "/default.exr";
+  auto r = RunRig("hdr --list " + list + " --out " + def);
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(stored(def), Imf::RLE_COMPRESSION);  // the command's default (docs/hdr.md)
+  auto reference = ReadExr(def);
+  ASSERT_TRUE(reference.ok());
+  for (auto [name, imf] : {std::pair{"zip", Imf::ZIP_COMPRESSION},
+                           std::pair{"none", Imf::NO_COMPRESSION},
+                           std::pair{"piz", Imf::PIZ_COMPRESSION}}) {
+    const std::string out = *dir_ + "/c_" + name + ".exr";
+    auto c = RunRig("hdr --list " + list + " --out " + out + " --compression " + name);
+    ASSERT_EQ(c.status, 0) << c.output;
+    EXPECT_EQ(stored(out), imf) << name;
+    auto img = ReadExr(out);
+    ASSERT_TRUE(img.ok());
+    ASSERT_EQ(img->channel_names, reference->channel_names);
+    for (size_t i = 0; i < img->channels.size(); ++i) {  // lossless: the same pixels, bit for bit
+      EXPECT_EQ(cv::norm(img->channels[i], reference->channels[i], cv::NORM_INF), 0.0)
+          << name << " " << img->channel_names[i];
+    }
+  }
+  auto bad = RunRig("hdr --list " + list + " --out " + *dir_ + "/bad.exr --compression lzw");
+  EXPECT_EQ(bad.status, 2);
+  EXPECT_THAT(bad.output, HasSubstr("--compression"));
+  EXPECT_FALSE(fs::exists(*dir_ + "/bad.exr"));
 }
 
 TEST_F(HdrCommands, BadListsFailWithExitTwoNamingTheFile) {

@@ -9,6 +9,10 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <ImfCompression.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
+
 #include "process/io/exr_io.h"
 #include "tests/support/run_rig.h"
 
@@ -48,6 +52,42 @@ class ProcessCommand : public ::testing::Test {
   static std::string* dir_;
 };
 std::string* ProcessCommand::dir_ = nullptr;
+
+// [process] hdr_compression reaches the session's maps: ZIP by default, the one asked for
+// after an edit (the pixels are the same: every choice is lossless).
+TEST_F(ProcessCommand, HdrCompressionOfTheSessionIsTheMapsCompression) {
+  auto stored = [](const fs::path& path) {
+    Imf::InputFile in(path.c_str());
+    return in.header().compression();
+  };
+  const fs::path s = Copy("compression");
+  auto first = RunRig("process " + s.string() + " --hdr-only");
+  ASSERT_EQ(first.status, 0) << first.output;
+  const fs::path map = s / "hdr" / "h020_v10.exr";
+  EXPECT_EQ(stored(map), Imf::ZIP_COMPRESSION);
+  auto zip_pixels = ReadExr(map.string());
+  ASSERT_TRUE(zip_pixels.ok());
+  {
+    std::ifstream in(s / "session.toml");
+    std::stringstream text;
+    text << in.rdbuf();
+    std::string toml = text.str();
+    const std::string was = "hdr_compression = 'zip'";
+    const size_t at = toml.find(was);
+    ASSERT_NE(at, std::string::npos) << toml;
+    toml.replace(at, was.size(), "hdr_compression = 'none'");
+    std::ofstream(s / "session.toml") << toml;
+  }
+  auto again = RunRig("process " + s.string() + " --hdr-only --force");
+  ASSERT_EQ(again.status, 0) << again.output;
+  EXPECT_EQ(stored(map), Imf::NO_COMPRESSION);
+  auto none_pixels = ReadExr(map.string());
+  ASSERT_TRUE(none_pixels.ok());
+  ASSERT_EQ(none_pixels->channels.size(), zip_pixels->channels.size());
+  for (size_t i = 0; i < none_pixels->channels.size(); ++i) {
+    EXPECT_EQ(cv::norm(none_pixels->channels[i], zip_pixels->channels[i], cv::NORM_INF), 0.0);
+  }
+}
 
 TEST_F(ProcessCommand, MergesEveryPoseThroughOneStoredResponseAndFitsTheModel) {
   const fs::path s = Copy("all");
