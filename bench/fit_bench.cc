@@ -28,6 +28,7 @@
 
 #include "config/log.h"
 #include "process/io/exr_io.h"
+#include "process/io/image_io.h"
 #include "process/model/fit.h"
 #include "process/model/map_store.h"
 #include "process/model/model_stream.h"
@@ -218,6 +219,7 @@ int main(int argc, char** argv) {
     if (k == "--compressions") compressions = split(argv[++i]);
   }
   rig::SetLogLevel(std::getenv("RIG_LOG_LEVEL") ? "" : "warn");
+  rig::ReuseFreedImageMemory();  // as rig itself does at start
   std::vector<double> hs, vs;
   const auto dirs = GridDirections(&hs, &vs);
   const auto weights = rig::GridQuadratureWeights(hs, vs);
@@ -344,7 +346,7 @@ int main(int argc, char** argv) {
       rig::FitOptions o;
       o.threads = 2;
       for (const std::string& compression : compressions) {
-        in.compression = compression;
+        in.compression = *rig::ParseExrCompression(compression);
         const std::string from_memory = (folder / "memory.exr").string(), from_files = (folder / "files.exr").string();
         auto t = Clock::now();
         auto bands = store.Bands(keys);

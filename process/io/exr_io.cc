@@ -155,6 +155,10 @@ const char* ExrCompressionName(ExrCompression c) {
   return "?";
 }
 
+ExrCompressionCode ExrCompressionCodeOf(ExrCompression c) {
+  return {static_cast<int>(ToImf(c)), c == ExrCompression::kZipFast ? 1 : 0};
+}
+
 const std::vector<std::string>& ExrCompressionNames() {
   static const std::vector<std::string> names = [] {
     std::vector<std::string> v;

@@ -33,6 +33,13 @@ Result<ExrCompression> ParseExrCompression(const std::string& name);
 const char* ExrCompressionName(ExrCompression c);
 // The names ParseExrCompression accepts, in the order above.
 const std::vector<std::string>& ExrCompressionNames();
+// For writers that build their own OpenEXR header: the Imf::Compression value of a choice, and
+// the zlib level to set (0: OpenEXR's default).
+struct ExrCompressionCode {
+  int imf_compression = 0;
+  int zip_level = 0;
+};
+ExrCompressionCode ExrCompressionCodeOf(ExrCompression c);
 
 // What ReadExr accepts before allocating (docs/robustness.md); larger files are refused as
 // damaged input (exit 2).

@@ -40,8 +40,14 @@ class StoreBands : public MapBands {
       // Half to float is exact: the values the file's reader would give.
       bgr_[i]->rowRange(y0, y1).convertTo((*bgr)[i], CV_32F);
       if (any_flags_) {
-        (*valid)[i] = valid_[i]->empty() ? cv::Mat(y1 - y0, width_, CV_8U, cv::Scalar(1))
-                                         : valid_[i]->rowRange(y0, y1).clone();
+        // copyTo/setTo reuse the caller's buffer when it has the size already.
+        cv::Mat& v = (*valid)[i];
+        if (valid_[i]->empty()) {
+          v.create(y1 - y0, width_, CV_8U);
+          v.setTo(1);
+        } else {
+          valid_[i]->rowRange(y0, y1).copyTo(v);
+        }
       }
     }
     return Ok();

@@ -24,8 +24,8 @@ struct StreamFitInput {
   LightFrameConfig light_frame;
   int band_rows = 32;              // rows per band
   int selection_rows = 256;        // rows (in evenly spaced bands) that choose order and λ
-  // The model file's compression (lossless): "zip" | "zip-fast" | "piz" | "none".
-  std::string compression = "zip";
+  // The model file's compression (all lossless; docs/model.md has their size and speed).
+  ExrCompression compression = ExrCompression::kZip;
 };
 
 struct StreamFitOutput {

@@ -139,6 +139,7 @@ Status FitSessionModel(const Session& session, const MapStore* maps) {
   RIG_ASSIGN_OR_RETURN(FitOptions options, FitOptionsFromConfig(config.process));
   options.threads = config.process.threads;
   ExrPixelType type = config.process.model_pixel_type == "float" ? ExrPixelType::kFloat : ExrPixelType::kHalf;
+  in.compression = *ParseExrCompression(config.process.model_compression);  // validated on load
   std::error_code ec;
   // model/ inside the session, never through a link.
   RIG_ASSIGN_OR_RETURN(fs::path model_dir, EnsureSessionFolder(layout.root, "model"));

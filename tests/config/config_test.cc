@@ -145,22 +145,28 @@ TEST(Config, InvalidChoiceListsChoicesAndSuggests) {
   EXPECT_THAT(d.message, HasSubstr("did you mean 'gphoto2'?"));
 }
 
-// The session's EXR compression: config (below process) keeps its own list of names; every
-// name the writer knows is accepted, and nothing else.
-TEST(Config, HdrCompressionAcceptsExactlyTheWritersNames) {
-  for (const std::string& name : ExrCompressionNames()) {
-    ConfigResult r = ParseConfig(std::string(kMinimal) + "\n[process]\nhdr_compression = \"" +
-                                     name + "\"\n", "t.toml");
-    ASSERT_TRUE(r.ok()) << name << ": " << r.AsError().ToString();
-    EXPECT_EQ(r.config.process.hdr_compression, name);
+// The session's EXR compressions (radiance maps, model): config (below process) keeps its own
+// list of names; every name the writer knows is accepted, and nothing else.
+TEST(Config, HdrAndModelCompressionAcceptExactlyTheWritersNames) {
+  for (const std::string key : {"hdr_compression", "model_compression"}) {
+    for (const std::string& name : ExrCompressionNames()) {
+      ConfigResult r = ParseConfig(std::string(kMinimal) + "\n[process]\n" + key + " = \"" +
+                                       name + "\"\n", "t.toml");
+      ASSERT_TRUE(r.ok()) << key << " " << name << ": " << r.AsError().ToString();
+      EXPECT_EQ(key == "hdr_compression" ? r.config.process.hdr_compression
+                                         : r.config.process.model_compression,
+                name);
+    }
+    auto d = Only(ParseConfig(std::string(kMinimal) + "\n[process]\n" + key + " = \"lzw\"\n",
+                              "t.toml"),
+                  "process." + key);
+    std::string listed;
+    for (const std::string& name : ExrCompressionNames()) listed += (listed.empty() ? "" : ", ") + name;
+    EXPECT_THAT(d.message, HasSubstr("not one of: " + listed));
   }
-  EXPECT_EQ(ParseConfig(kMinimal, "t.toml").config.process.hdr_compression, "zip");
-  auto d = Only(ParseConfig(std::string(kMinimal) + "\n[process]\nhdr_compression = \"lzw\"\n",
-                            "t.toml"),
-                "process.hdr_compression");
-  std::string listed;
-  for (const std::string& name : ExrCompressionNames()) listed += (listed.empty() ? "" : ", ") + name;
-  EXPECT_THAT(d.message, HasSubstr("not one of: " + listed));
+  const Config defaults = ParseConfig(kMinimal, "t.toml").config;
+  EXPECT_EQ(defaults.process.hdr_compression, "zip");
+  EXPECT_EQ(defaults.process.model_compression, "none");
 }
 
 TEST(Config, AllErrorsAreReportedAtOnceInFileOrder) {
