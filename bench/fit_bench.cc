@@ -102,6 +102,7 @@ double MaxDifference(const std::string& a_path, const std::string& b_path) {
   return worst;
 }
 
+// The process's peak resident memory (VmHWM), MB.
 double PeakRssMb() {
   double hwm_kb = 0;
   if (std::FILE* st = std::fopen("/proc/self/status", "r")) {
@@ -170,14 +171,7 @@ int FitOnly(const std::string& folder, const char* label) {
   if (!f) return 1;
   // VmHWM: this process image's own peak resident memory (ru_maxrss would also count what
   // the parent held when it started us).
-  double hwm_kb = 0;
-  if (std::FILE* st = std::fopen("/proc/self/status", "r")) {
-    char line[256];
-    while (std::fgets(line, sizeof line, st))
-      if (std::sscanf(line, "VmHWM: %lf kB", &hwm_kb) == 1) break;
-    std::fclose(st);
-  }
-  std::fprintf(f, "%.3f %.0f\n", Seconds(t0), hwm_kb);
+  std::fprintf(f, "%.3f %.0f\n", Seconds(t0), PeakRssMb() * 1024.0);
   std::fclose(f);
   return 0;
 }

@@ -32,12 +32,7 @@ namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 using testing::RunRig;
 
-std::string ReadText(const fs::path& p) {
-  std::ifstream f(p);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
+std::string ReadText(const fs::path& p) { return testing::ReadText(p.string()); }
 
 // A job Snakemake printed: "rule NAME:" ... "jobid: N" ... "wildcards: ..." (one block).
 struct Job {

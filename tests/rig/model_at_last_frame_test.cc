@@ -19,12 +19,7 @@ namespace {
 namespace fs = std::filesystem;
 using testing::RunRig;
 
-std::string ReadText(const fs::path& p) {
-  std::ifstream f(p);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
+std::string ReadText(const fs::path& p) { return testing::ReadText(p.string()); }
 
 int Count(const std::string& text, const std::string& what) {
   int n = 0;

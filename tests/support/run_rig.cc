@@ -7,6 +7,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
@@ -35,6 +37,13 @@ std::string SourceDir() {
 std::string SharedDir() {
   const char* s = std::getenv("RIG_SHARED_DIR");
   return s ? s : SourceDir() + "/../shared";
+}
+
+std::string ReadText(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
 }
 
 std::string FreshTempDir(const std::string& name) {

@@ -20,6 +20,9 @@ std::string SharedDir();
 // A fresh empty folder under the temporary directory, unique per process and name.
 std::string FreshTempDir(const std::string& name);
 
+// The whole content of a file ("" when it cannot be read).
+std::string ReadText(const std::string& path);
+
 }  // namespace rig::testing
 
 #include <sys/types.h>
