@@ -16,6 +16,12 @@ function(rig_add_library name)
   target_include_directories(${name} PUBLIC ${PROJECT_SOURCE_DIR} ${PROJECT_BINARY_DIR})
   target_link_libraries(${name} PUBLIC ${ARG_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
   rig_warnings(${name})
+  # RIG_UNITY_BUILD (the sanitizer build, scripts/test-sanitize.sh): a library's sources
+  # compiled in batches, each header parsed and each template instantiated once per batch.
+  # File-local names must therefore be unique within a library.
+  if(RIG_UNITY_BUILD)
+    set_target_properties(${name} PROPERTIES UNITY_BUILD ON UNITY_BUILD_BATCH_SIZE ${RIG_UNITY_BATCH})
+  endif()
 endfunction()
 
 # rig_add_test(NAME SOURCES ... DEPS ... [LABELS ...] [ENV ...] [FIXTURES ...])

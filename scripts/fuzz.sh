@@ -32,7 +32,7 @@ if [ ! -d "$build/tests/fuzz" ]; then
   bash scripts/setup.sh
   cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DRIG_WERROR="${RIG_WERROR:-OFF}" \
     -DCMAKE_C_COMPILER=clang-14 -DCMAKE_CXX_COMPILER=clang++-14 -DRIG_FUZZ=ON \
-    -DRIG_BUILD_BENCH=OFF >/dev/null
+    -DRIG_BUILD_BENCH=OFF -DRIG_UNITY_BUILD=ON >/dev/null
 fi
 cmake --build "$build" -j2 --target fuzzers
 

@@ -15,7 +15,7 @@
 namespace rig {
 namespace {
 
-constexpr const char* kDevice = "sim camera";
+constexpr const char* kCameraDevice = "sim camera";
 
 // Hable's filmic curve ("Uncharted 2"): a toe, a linear part and a shoulder.
 double Hable(double x) {
@@ -23,7 +23,7 @@ double Hable(double x) {
   return ((x * (A * x + C * B) + D * E) / (x * (A * x + B) + D * F)) - E / F;
 }
 
-uint64_t Mix(uint64_t x) {
+uint64_t SplitMix(uint64_t x) {
   x += 0x9e3779b97f4a7c15ull;
   x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
   x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
@@ -65,7 +65,7 @@ const std::array<float, 65536>& NormalTable() {
 }
 
 Error DeviceError(ErrorCode code, const std::string& message) {
-  return Error{code, message, kDevice};
+  return Error{code, message, kCameraDevice};
 }
 
 }  // namespace
@@ -270,7 +270,7 @@ cv::Mat SimCamera::Expose(const cv::Mat& radiance, Seconds exposure, uint64_t no
   const float inv_e_per_dn = static_cast<float>(1.0 / RawElectronsPerDn());
   if (raw_dn) raw_dn->create(radiance.rows, radiance.cols, CV_16UC3);
   const auto& normal = NormalTable();
-  uint64_t state = Mix(noise_seed);
+  uint64_t state = SplitMix(noise_seed);
   uint64_t bits = 0;
   int left = 0;
   for (int j = 0; j < radiance.rows; ++j) {
@@ -282,7 +282,7 @@ cv::Mat SimCamera::Expose(const cv::Mat& radiance, Seconds exposure, uint64_t no
       if (noisy) {
         if (left == 0) {
           state += 0x9e3779b97f4a7c15ull;
-          bits = Mix(state);
+          bits = SplitMix(state);
           left = 4;
         }
         const float n = normal[bits & 0xffff];
@@ -368,7 +368,7 @@ Result<CapturedFrame> SimCamera::Capture(Seconds exposure) {
   const auto micro = [](double deg) { return static_cast<uint64_t>(std::llround(deg * 1e6)); };
   const uint64_t speed_index = static_cast<uint64_t>(offered - speeds_.begin());
   const uint64_t noise_seed =
-      Mix(Mix(Mix(static_cast<uint64_t>(sim_.seed)) ^ micro(state.h_deg)) ^ micro(state.v_deg)) ^
+      SplitMix(SplitMix(SplitMix(static_cast<uint64_t>(sim_.seed)) ^ micro(state.h_deg)) ^ micro(state.v_deg)) ^
       speed_index;
   cv::Mat raw_dn;
   cv::Mat image = Expose(radiance, t, noise_seed, capture_raw_ ? &raw_dn : nullptr);

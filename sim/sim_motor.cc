@@ -10,10 +10,10 @@
 namespace rig {
 namespace {
 
-constexpr const char* kDevice = "sim motor";
+constexpr const char* kMotorDevice = "sim motor";
 
 Error MotorError(ErrorCode code, const std::string& message) {
-  return Error{code, message, kDevice};
+  return Error{code, message, kMotorDevice};
 }
 
 }  // namespace

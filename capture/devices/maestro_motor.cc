@@ -14,7 +14,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-Clock::time_point After(Seconds s) {
+Clock::time_point Deadline(Seconds s) {
   return Clock::now() + std::chrono::duration_cast<Clock::duration>(s);
 }
 
@@ -207,9 +207,9 @@ Status MaestroMotor::DoMove(const Pose& pose) {
   RIG_TRY(port_->Write(MaestroCommand(kMaestroSetTarget, channel_[0], targets[0]) +
                            MaestroCommand(kMaestroSetTarget, channel_[1], targets[1]),
                        Seconds(config_.reply_timeout_s)));
-  auto deadline = After(Seconds(config_.move_timeout_s));
+  auto deadline = Deadline(Seconds(config_.move_timeout_s));
   for (;;) {
-    auto next_poll = After(Seconds(config_.maestro.poll_interval_s));
+    auto next_poll = Deadline(Seconds(config_.maestro.poll_interval_s));
     auto moving = GetMoving();
     if (!moving.ok()) {
       if (moving.error().code == ErrorCode::kInterrupted) {
@@ -325,7 +325,7 @@ Status MaestroMotor::Reconnect() {
   const int attempts = std::max(1, config_.retries);
   std::optional<Pose> before = last_pose_;
   for (int attempt = 1; attempt <= attempts; ++attempt) {
-    auto until = After(Seconds(backoff_s));
+    auto until = Deadline(Seconds(backoff_s));
     while (Clock::now() < until) {
       if (SerialInterruptRequested()) return Fail(ErrorCode::kInterrupted, "interrupted while reconnecting");
       std::this_thread::sleep_for(std::min<Clock::duration>(until - Clock::now(), std::chrono::milliseconds(20)));

@@ -214,7 +214,7 @@ Result<MethodEvaluation> EvaluateMethods(const MethodEvalInput& in) {
 
 namespace {
 
-std::string Num(double v, const char* fmt_spec = "{:.4g}") {
+std::string FormatNum(double v, const char* fmt_spec = "{:.4g}") {
   return std::isfinite(v) ? fmt::format(fmt::runtime(fmt_spec), v) : "";
 }
 
@@ -257,9 +257,9 @@ std::string MethodsMarkdown(const MethodEvaluation& e) {
     if (r.pareto_storage) front += "storage";
     s += fmt::format("| {}{}{} | {} | {} | {:.4f} | {:.4f} | {:g} | {} | {} | {} ({} / {}) | {} | {} |\n",
                      r.selected ? "**" : "", r.Name(), r.selected ? "**" : "", r.order, r.terms,
-                     r.fit_time_s, r.render_s_per_mp, r.bytes_per_pixel, Num(r.condition, "{:.3g}"),
-                     Num(r.loo_relative), Num(r.truth_relative), Num(r.truth_relative_shadowed),
-                     Num(r.truth_relative_lit), Num(r.extrapolation_relative), front);
+                     r.fit_time_s, r.render_s_per_mp, r.bytes_per_pixel, FormatNum(r.condition, "{:.3g}"),
+                     FormatNum(r.loo_relative), FormatNum(r.truth_relative), FormatNum(r.truth_relative_shadowed),
+                     FormatNum(r.truth_relative_lit), FormatNum(r.extrapolation_relative), front);
   }
   return s;
 }

@@ -22,7 +22,7 @@ namespace {
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
-double Seconds(Clock::time_point t0) {
+double SecondsSince(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
@@ -70,7 +70,7 @@ Result<RtiLooRow> PcaRow(const RtiCapture& cap, const PcaChoiceOptions& co,
   row.psnr_mean_mse_db = score->psnr_mean_mse_db;
   row.psnr_median_db = score->psnr_median_db;
   row.bytes_per_pixel = score->bytes_per_pixel;
-  row.fit_time_s = Seconds(t0);
+  row.fit_time_s = SecondsSince(t0);
   return row;
 }
 
@@ -98,7 +98,7 @@ Result<RtiLooRow> NeuralRow(const RtiCapture& cap, const std::vector<int>& folds
   row.psnr_mean_mse_db = score->psnr_mean_mse_db;
   row.psnr_median_db = score->psnr_median_db;
   row.bytes_per_pixel = score->bytes_per_pixel;
-  row.fit_time_s = Seconds(t0);
+  row.fit_time_s = SecondsSince(t0);
   return row;
 }
 
@@ -148,7 +148,7 @@ Result<std::vector<RtiLooRow>> HarmonicRows(const RtiCapture& cap, const std::st
     req.harmonic.transform.space = FitSpace::kSrgb;
     const auto t0 = Clock::now();
     RIG_ASSIGN_OR_RETURN(RtiFitResult fit, FitRti(cap, req));
-    const double fit_s = Seconds(t0);
+    const double fit_s = SecondsSince(t0);
     const std::string path = tmp + ".exr";
     RIG_TRY(fit.model->Save(path));
     RtiLooRow row;

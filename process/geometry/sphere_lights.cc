@@ -13,7 +13,7 @@ namespace rig {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-constexpr double kDeg = 180.0 / kPi;
+constexpr double kDegPerRadian = 180.0 / kPi;
 
 Vec3 Normalize(const Vec3& v) {
   const double n = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
@@ -30,7 +30,7 @@ double Median(std::vector<float> v) {
 
 // Bilinear sample of a CV_32FC1 image at continuous coordinates (u, v) (pixel centres at
 // i + 0.5); clamps at the border.
-double Sample(const cv::Mat& img, double u, double v) {
+double SampleBilinear(const cv::Mat& img, double u, double v) {
   double x = u - 0.5, y = v - 0.5;
   x = std::clamp(x, 0.0, img.cols - 1.001);
   y = std::clamp(y, 0.0, img.rows - 1.001);
@@ -127,7 +127,7 @@ std::string CameraModel::Describe() const {
 double AngleDeg(const Vec3& a, const Vec3& b) {
   const Vec3 x = Normalize(a), y = Normalize(b);
   const Vec3 c = {x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]};
-  return std::atan2(std::sqrt(Dot(c, c)), Dot(x, y)) * kDeg;
+  return std::atan2(std::sqrt(Dot(c, c)), Dot(x, y)) * kDegPerRadian;
 }
 
 cv::Mat MedianGrey(const LightStack& stack) {
@@ -170,7 +170,7 @@ SphereCircle RefineOnce(const cv::Mat& lg, const cv::Mat& lin, const SphereCircl
     std::vector<double> prof;
     const double r0 = rough.r * 0.75, r1 = rough.r * 1.25 + 2;
     for (double r = r0; r <= r1; r += step)
-      prof.push_back(Sample(lg, rough.cx + r * ca, rough.cy + r * sa));
+      prof.push_back(SampleBilinear(lg, rough.cx + r * ca, rough.cy + r * sa));
     std::vector<double> d(prof.size(), 0);
     for (size_t i = 1; i + 1 < prof.size(); ++i) d[i] = std::abs(prof[i + 1] - prof[i - 1]);
     // The sphere's edge is the innermost strong edge of the ray (at least half its steepest):
@@ -196,7 +196,7 @@ SphereCircle RefineOnce(const cv::Mat& lg, const cv::Mat& lin, const SphereCircl
     // steepest point, has fallen to a fifth of it: just outside the edge's own transition and
     // before the next edge (a background edge 2 px further must not set the outer level). A
     // symmetric blur gives symmetric walks, so the halfway crossing is the edge's position.
-    auto at = [&](double r) { return Sample(lin, rough.cx + r * ca, rough.cy + r * sa); };
+    auto at = [&](double r) { return SampleBilinear(lin, rough.cx + r * ca, rough.cy + r * sa); };
     const double fine = 0.125;
     auto slope = [&](double r) { return std::abs(at(r + 2 * fine) - at(r - 2 * fine)); };
     double peak_r = coarse, peak = -1;
@@ -470,7 +470,7 @@ Result<SphereCalibration> CalibrateFromSpheres(const LightStack& stack,
 namespace {
 
 Vec3 Tilted(const Vec3& d, double tilt_deg) {
-  const double t = tilt_deg / kDeg, c = std::cos(t), s = std::sin(t);
+  const double t = tilt_deg / kDegPerRadian, c = std::cos(t), s = std::sin(t);
   return {c * d[0] - s * d[1], s * d[0] + c * d[1], d[2]};
 }
 
@@ -544,12 +544,12 @@ Result<LightFrameFit> FitLightFrame(const std::vector<double>& h_deg,
       for (size_t i = 0; i < measured.size(); ++i) {
         double mh, mv;
         DirectionToAngles(measured[i], &mh, &mv);
-        const double dh = (mh - hs * h_deg[i]) / kDeg;
+        const double dh = (mh - hs * h_deg[i]) / kDegPerRadian;
         sh += std::sin(dh);
         ch += std::cos(dh);
         sv += mv - vs * v_deg[i];
       }
-      f.h_offset_deg = std::atan2(sh, ch) * kDeg;
+      f.h_offset_deg = std::atan2(sh, ch) * kDegPerRadian;
       f.v_offset_deg = sv / measured.size();
       double tilt = 0;
       const double cost = FitOffsets(h_deg, v_deg, measured, &f, &tilt, false);

@@ -84,7 +84,7 @@ constexpr int kPatchRadius = 2;
 
 // One sample: a patch's mean level in one channel for every frame of its bracket (negative:
 // the frame does not record the patch, some pixel of it is black or clipped).
-struct Sample {
+struct ResponseSample {
   int bracket = 0, x = 0, y = 0;
   std::vector<float> z;
 };
@@ -116,11 +116,11 @@ float PatchMean(const cv::Mat& img, int x, int y, int c, float* grad) {
 // it samples are taken at evenly spaced values of a radiance proxy (the sum of levels over the
 // bracket, monotone in radiance), so that they spread over the intensity range.
 // Patches recorded by fewer than two frames (the rest black or clipped) say nothing about g.
-std::vector<Sample> ChooseSamples(const Bracket& frames, int bracket_index, int c, int wanted,
+std::vector<ResponseSample> ChooseSamples(const Bracket& frames, int bracket_index, int c, int wanted,
                                   uint64_t seed) {
   const int w = frames[0].image.cols, h = frames[0].image.rows;
   const int m = kPatchRadius;
-  std::vector<Sample> out;
+  std::vector<ResponseSample> out;
   if (w < 2 * m + 1 || h < 2 * m + 1 || wanted <= 0) return out;
   const int n = static_cast<int>(frames.size());
   const int iw = w - 2 * m, ih = h - 2 * m;  // patch centres lie in [m, w - m)
@@ -130,7 +130,7 @@ std::vector<Sample> ChooseSamples(const Bracket& frames, int bracket_index, int 
   std::mt19937_64 rng(seed * 0x9E3779B97F4A7C15ull + bracket_index * 131 + c);
   constexpr int kTries = 4;
   struct Candidate {
-    Sample s;
+    ResponseSample s;
     float gradient;
     float proxy;
   };
@@ -207,14 +207,14 @@ std::vector<Sample> ChooseSamples(const Bracket& frames, int bracket_index, int 
 
 // The plain alternative (for comparison): single pixels on a regular grid of about `wanted`
 // points, as OpenCV's CalibrateDebevec takes them.
-std::vector<Sample> GridSamples(const Bracket& frames, int bracket_index, int c, int wanted) {
+std::vector<ResponseSample> GridSamples(const Bracket& frames, int bracket_index, int c, int wanted) {
   const int w = frames[0].image.cols, h = frames[0].image.rows;
   const int cols = std::max(1, int(std::round(std::sqrt(double(wanted) * w / h))));
   const int rows = std::max(1, (wanted + cols - 1) / cols);
-  std::vector<Sample> out;
+  std::vector<ResponseSample> out;
   for (int r = 0; r < rows; ++r) {
     for (int q = 0; q < cols && int(out.size()) < wanted; ++q) {
-      Sample s{bracket_index, int((q + 0.5) * w / cols), int((r + 0.5) * h / rows), {}};
+      ResponseSample s{bracket_index, int((q + 0.5) * w / cols), int((r + 0.5) * h / rows), {}};
       for (const auto& f : frames) s.z.push_back(BinAt(f.image, s.x, s.y, c));
       out.push_back(std::move(s));
     }
@@ -229,7 +229,7 @@ std::vector<Sample> GridSamples(const Bracket& frames, int bracket_index, int c,
 // mean of its sample's g(z_ij) - ln t_j), leaving a dense kBins x kBins symmetric positive
 // definite system, solved by LDLT.
 Result<std::vector<double>> SolveChannel(std::span<const Bracket> brackets,
-                                         const std::vector<Sample>& samples, int c,
+                                         const std::vector<ResponseSample>& samples, int c,
                                          double lambda) {
   Eigen::MatrixXd s = Eigen::MatrixXd::Zero(kBins, kBins);
   Eigen::VectorXd r = Eigen::VectorXd::Zero(kBins);
@@ -242,7 +242,7 @@ Result<std::vector<double>> SolveChannel(std::span<const Bracket> brackets,
   std::vector<Row> rows;
   int equations = 0;
   double data_weight = 0;  // sum of squared data-row weights
-  for (const Sample& smp : samples) {
+  for (const ResponseSample& smp : samples) {
     const Bracket& frames = brackets[smp.bracket];
     rows.clear();
     double a = 0, b = 0;
@@ -458,8 +458,8 @@ Result<ResponseCurve> RecoverResponse(std::span<const Bracket> brackets,
   }
   const int nb = static_cast<int>(brackets.size());
   const int per_bracket = (o.samples + nb - 1) / nb;
-  // Sample selection: one task per (bracket, channel).
-  std::vector<std::vector<Sample>> chosen(size_t(nb) * 3);
+  // ResponseSample selection: one task per (bracket, channel).
+  std::vector<std::vector<ResponseSample>> chosen(size_t(nb) * 3);
   ParallelFor(nb * 3, o.threads, [&](int b, int e) {
     for (int k = b; k < e; ++k) {
       chosen[k] = o.grid_sampling
@@ -467,7 +467,7 @@ Result<ResponseCurve> RecoverResponse(std::span<const Bracket> brackets,
                       : ChooseSamples(brackets[k / 3], k / 3, k % 3, per_bracket, o.seed);
     }
   });
-  std::array<std::vector<Sample>, 3> samples;
+  std::array<std::vector<ResponseSample>, 3> samples;
   for (int k = 0; k < nb * 3; ++k) {
     samples[k % 3].insert(samples[k % 3].end(), chosen[k].begin(), chosen[k].end());
   }

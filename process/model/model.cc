@@ -14,7 +14,7 @@
 namespace rig {
 namespace {
 
-double AngleDeg(const Vec3& a, const Vec3& b) {
+double AngleBetweenDirsDeg(const Vec3& a, const Vec3& b) {
   const double na = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
   const double nb = std::sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
   const double c = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) / (na * nb);
@@ -71,7 +71,7 @@ double SampleSpacingDeg(const std::vector<Vec3>& dirs) {
   for (size_t i = 0; i < dirs.size(); ++i) {
     double nearest = 180;
     for (size_t j = 0; j < dirs.size(); ++j)
-      if (j != i) nearest = std::min(nearest, AngleDeg(dirs[i], dirs[j]));
+      if (j != i) nearest = std::min(nearest, AngleBetweenDirsDeg(dirs[i], dirs[j]));
     if (dirs.size() > 1) spacing = std::max(spacing, nearest);
   }
   return spacing;
@@ -128,7 +128,7 @@ RegionCheck Model::CheckRegion(const Vec3& direction) const {
   RegionCheck r;
   r.nearest_deg = 180;
   for (const auto& d : info_.lamp_directions)
-    r.nearest_deg = std::min(r.nearest_deg, AngleDeg(direction, d));
+    r.nearest_deg = std::min(r.nearest_deg, AngleBetweenDirsDeg(direction, d));
   r.spacing_deg = info_.sample_spacing_deg;
   r.inside = !info_.lamp_directions.empty() &&
              r.nearest_deg <= info_.sample_spacing_deg + 0.5;

@@ -24,7 +24,7 @@ namespace {
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
-double Since(Clock::time_point t0) {
+double PcaSeconds(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
@@ -47,10 +47,10 @@ void OnThreads(int threads, const std::function<void(int)>& body) {
 }
 
 // Every image's decoder, open at once, read band by band.
-class BandReader {
+class PcaBandReader {
  public:
-  static Result<BandReader> Open(const std::vector<LpEntry>& entries, const PcaStreamOptions& s) {
-    BandReader r;
+  static Result<PcaBandReader> Open(const std::vector<LpEntry>& entries, const PcaStreamOptions& s) {
+    PcaBandReader r;
     r.threads_ = std::max(1, s.threads);
     for (const auto& e : entries) {
       const std::string where = Where(s, e);
@@ -104,7 +104,7 @@ class BandReader {
 };
 
 // Pixel `local` of the band (all lights) to dst, laid out as LightSamples::values.
-void CopyPixel(const BandReader& r, size_t lights, size_t local, uint8_t* dst) {
+void CopyPixel(const PcaBandReader& r, size_t lights, size_t local, uint8_t* dst) {
   for (size_t l = 0; l < lights; ++l) std::memcpy(dst + l * 3, r.band(l) + local * 3, 3);
 }
 
@@ -164,7 +164,7 @@ Result<PcaStreamFit> FitPcaStreaming(const std::vector<LpEntry>& entries,
   PcaChoiceInput in;
   std::vector<size_t> subset;
   {
-    RIG_ASSIGN_OR_RETURN(BandReader reader, BandReader::Open(entries, stream));
+    RIG_ASSIGN_OR_RETURN(PcaBandReader reader, PcaBandReader::Open(entries, stream));
     const int w = reader.width(), h = reader.height();
     out.width = w;
     out.height = h;
@@ -199,7 +199,7 @@ Result<PcaStreamFit> FitPcaStreaming(const std::vector<LpEntry>& entries,
       }
     }
   }
-  out.gather_s = Since(t0);
+  out.gather_s = PcaSeconds(t0);
 
   // The choice and the basis, exactly as FitPcaAuto makes them from the whole samples.
   const auto t1 = Clock::now();
@@ -252,7 +252,7 @@ Result<PcaStreamFit> FitPcaStreaming(const std::vector<LpEntry>& entries,
     quant = PcaQuantisation(sampled, po.quantile);
   }
   in.sampled = LightSamples();
-  out.choice_s = Since(t1);
+  out.choice_s = PcaSeconds(t1);
 
   // Pass 2: every pixel's coefficients in FitPcaCoefficients' blocks, quantised, written row
   // by row into ceil(k / 3) plane files (three planes each, R, G, B).
@@ -261,7 +261,7 @@ Result<PcaStreamFit> FitPcaStreaming(const std::vector<LpEntry>& entries,
     std::error_code ec;
     fs::create_directories(out_folder, ec);
     if (ec) return MakeError(ErrorCode::kIo, out_folder, "cannot create the folder: {}", ec.message());
-    RIG_ASSIGN_OR_RETURN(BandReader reader, BandReader::Open(entries, stream));
+    RIG_ASSIGN_OR_RETURN(PcaBandReader reader, PcaBandReader::Open(entries, stream));
     const int w = reader.width(), h = reader.height();
     if (static_cast<size_t>(w) * h != pixels) {
       return MakeError(ErrorCode::kInvalidInput, context, "the images changed between the passes");
@@ -356,8 +356,8 @@ Result<PcaStreamFit> FitPcaStreaming(const std::vector<LpEntry>& entries,
   }
   RIG_TRY(WritePcaInfo(out_folder, out.width, out.height, basis, quant, directions,
                        po.jpeg_quality));
-  out.write_s = Since(t2);
-  out.stats.time_s = Since(t0);
+  out.write_s = PcaSeconds(t2);
+  out.stats.time_s = PcaSeconds(t0);
   return out;
 }
 

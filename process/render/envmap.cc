@@ -16,7 +16,6 @@
 namespace rig {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 constexpr double kWeightB = 0.0722, kWeightG = 0.7152, kWeightR = 0.2126;
 
 // One texel of the working map: direction, R, G, B radiance × solid angle, luminance × solid
@@ -35,7 +34,8 @@ std::vector<Texel> Texels(const ReflectanceModel& model, const cv::Mat& map,
   texels.reserve(static_cast<size_t>(w) * h);
   for (int r = 0; r < h; ++r) {
     const double v = (r + 0.5) / h;
-    const double solid_angle = (2 * kPi / w) * (kPi / h) * std::cos(kPi * (0.5 - v));
+    const double pi = std::numbers::pi;
+    const double solid_angle = (2 * pi / w) * (pi / h) * std::cos(pi * (0.5 - v));
     const cv::Vec3f* row = map.ptr<cv::Vec3f>(r);
     for (int c = 0; c < w; ++c) {
       Texel t;
@@ -88,8 +88,8 @@ cv::Mat DotWithProjection(const Model& m, const std::vector<std::array<double, 3
 }  // namespace
 
 Vec3 EnvmapDirection(double u, double v, double rotate_deg) {
-  const double phi = 2 * kPi * (u - 0.5) + rotate_deg * kPi / 180;
-  const double theta = kPi * (0.5 - v);
+  const double phi = 2 * std::numbers::pi * (u - 0.5) + rotate_deg * std::numbers::pi / 180;
+  const double theta = std::numbers::pi * (0.5 - v);
   return {std::cos(theta) * std::sin(phi), std::sin(theta), std::cos(theta) * std::cos(phi)};
 }
 

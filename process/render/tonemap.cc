@@ -19,7 +19,7 @@ namespace rig {
 namespace {
 
 // Rec. 709 / sRGB primaries, applied to OpenCV's B, G, R order.
-constexpr float kWeightB = 0.0722f, kWeightG = 0.7152f, kWeightR = 0.2126f;
+constexpr float kLumaB = 0.0722f, kLumaG = 0.7152f, kLumaR = 0.2126f;
 
 // Float-bit lookup: a positive float's bits shifted right by kLutShift index a table whose
 // entries are 2^(23 - kLutShift) per octave, i.e. evenly spaced in log L (relative step 2^-10).
@@ -114,7 +114,7 @@ cv::Mat ScaleByLuminance(const cv::Mat& radiance, const Factor& factor) {
       float* o = out.ptr<float>(y);
       for (int x = 0; x < radiance.cols; ++x, in += 3, o += 3) {
         const float b = in[0], g = in[1], r = in[2];
-        const float l = kWeightB * b + kWeightG * g + kWeightR * r;
+        const float l = kLumaB * b + kLumaG * g + kLumaR * r;
         float m = 0;
         if (l > 0 && l <= std::numeric_limits<float>::max()) {
           m = factor(l);
@@ -186,7 +186,7 @@ cv::Mat LinearPixels(const cv::Mat& radiance, const ToneMapOptions& o, ToneMapRe
   for (size_t i = 0; i < n; i += stride) {
     const cv::Vec3f p = radiance.at<cv::Vec3f>(static_cast<int>(i / radiance.cols),
                                                static_cast<int>(i % radiance.cols));
-    const float l = kWeightB * p[0] + kWeightG * p[1] + kWeightR * p[2];
+    const float l = kLumaB * p[0] + kLumaG * p[1] + kLumaR * p[2];
     if (l > 0 && std::isfinite(l)) {
       lum.push_back(l);
       lo = std::min(lo, l);
@@ -292,7 +292,7 @@ double FieldOfViewDeg(double focal_length_mm, double sensor_width_mm) {
 cv::Mat Luminance(const cv::Mat& bgr) {
   RIG_CHECK(bgr.type() == CV_32FC3, "Luminance takes CV_32FC3");
   cv::Mat lum;
-  cv::transform(bgr, lum, cv::Matx13f(kWeightB, kWeightG, kWeightR));
+  cv::transform(bgr, lum, cv::Matx13f(kLumaB, kLumaG, kLumaR));
   return lum;
 }
 
@@ -592,7 +592,7 @@ WardMapping ComputeWardMappingForImage(const cv::Mat& radiance, const ToneMapOpt
     const int cols = radiance.cols;
     for (int64_t i : idx) {
       const float* p = radiance.ptr<float>(static_cast<int>(i / cols)) + 3 * (i % cols);
-      points.push_back(kWeightB * p[0] + kWeightG * p[1] + kWeightR * p[2]);
+      points.push_back(kLumaB * p[0] + kLumaG * p[1] + kLumaR * p[2]);
     }
   }
   WardMapping mapping = ComputeWardMapping(samples, points, o, report);

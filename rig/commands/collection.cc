@@ -286,7 +286,7 @@ void ReadSession(const fs::path& dir, const fs::path& entry, const fs::path& ses
   if (!merged.empty() && merged != "0") r->faults.push_back(merged + " pose(s) failed to merge");
 }
 
-void ReadLp(const fs::path& dir, const fs::path& entry, Row* r) {
+void ReadLpRow(const fs::path& dir, const fs::path& entry, Row* r) {
   std::error_code ec;
   const fs::path report = entry / "fit.md";
   const fs::path log = dir / "logs" / "fit" / (r->name + ".log");
@@ -382,7 +382,7 @@ int RunReport(int argc, char** argv) {
       ReadSession(d, entry, fs::path(r.source), &r);
     } else if (fs::is_regular_file(src, ec)) {
       r.kind = "lp";
-      ReadLp(d, entry, &r);
+      ReadLpRow(d, entry, &r);
     } else {
       r.kind = "missing";
       r.faults.push_back("the source is gone: " + r.source);
