@@ -436,11 +436,95 @@ Result<std::vector<SphereCircle>> DetectChromeSpheres(const LightStack& stack,
   return found;
 }
 
+Result<LampEstimate> EstimateLamp(const SphereCalibration& cal, int width, int height,
+                                  const CameraModel& camera, const SphereField& field) {
+  const auto& spheres = cal.spheres;
+  if (spheres.size() < 2)
+    return MakeError(ErrorCode::kInvalidInput, "(spheres)",
+                     "the lamp's position needs two or more chrome spheres at different places in "
+                     "the field ({} given): one sphere sees the lamp's direction, not its distance",
+                     spheres.size());
+  if (field.field_height_mm <= 0)
+    return MakeError(ErrorCode::kInvalidInput, "(field)",
+                     "the lamp's position needs the field's height at the object (mm) to place "
+                     "the spheres");
+  if (camera.perspective())
+    return MakeError(ErrorCode::kInvalidInput, "(camera)",
+                     "the lamp's position places the spheres with the orthographic model only "
+                     "(a perspective camera would need every sphere's size in mm)");
+  if (field.depth_mm.size() > 1 && field.depth_mm.size() != spheres.size())
+    return MakeError(ErrorCode::kInvalidInput, "(spheres)",
+                     "{} sphere depths given for {} spheres (give one for all, or one per sphere)",
+                     field.depth_mm.size(), spheres.size());
+  for (size_t a = 0; a < spheres.size(); ++a)
+    for (size_t b = a + 1; b < spheres.size(); ++b)
+      if (std::hypot(spheres[a].cx - spheres[b].cx, spheres[a].cy - spheres[b].cy) <
+          spheres[a].r + spheres[b].r)
+        return MakeError(ErrorCode::kInvalidInput, "(spheres)",
+                         "spheres {} and {} overlap in the image ({:.1f}, {:.1f} and {:.1f}, "
+                         "{:.1f} px): the same sphere twice, or a circle wrong", a + 1, b + 1,
+                         spheres[a].cx, spheres[a].cy, spheres[b].cx, spheres[b].cy);
+  const double mm_per_px = field.field_height_mm / height;
+  LampEstimate est;
+  est.depth_assumed = field.depth_mm.empty();
+  for (size_t j = 0; j < spheres.size(); ++j)
+    est.depth_mm.push_back(est.depth_assumed ? spheres[j].r * mm_per_px
+                                             : field.depth_mm[field.depth_mm.size() == 1 ? 0 : j]);
+  std::vector<std::vector<LampRay>> rays(cal.highlights.size());
+  std::vector<double> distances, misses, resolvable;
+  for (size_t k = 0; k < cal.highlights.size(); ++k) {
+    for (size_t j = 0; j < spheres.size(); ++j) {
+      const Highlight& h = cal.highlights[k][j];
+      const SphereCircle& c = spheres[j];
+      const double r_mm = c.r * mm_per_px;
+      const Vec3 centre = {(c.cx - width / 2.0) * mm_per_px, (height / 2.0 - c.cy) * mm_per_px,
+                           est.depth_mm[j]};
+      rays[k].push_back({{centre[0] + r_mm * h.normal[0], centre[1] + r_mm * h.normal[1],
+                          centre[2] + r_mm * h.normal[2]},
+                         h.direction,
+                         2 * field.edge_px / c.r});
+    }
+    LampFix fix = TriangulateRays(rays[k], field.lamp);
+    resolvable.push_back(fix.resolvable_mm);
+    if (fix.determined) {
+      ++est.determined;
+      distances.push_back(fix.distance_mm);
+      misses.push_back(fix.miss_mm);
+    }
+    est.fixes.push_back(std::move(fix));
+  }
+  auto median = [](std::vector<double> v) {
+    if (v.empty()) return 0.0;
+    std::sort(v.begin(), v.end());
+    const size_t m = v.size() / 2;
+    return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
+  };
+  est.resolvable_mm = median(resolvable);
+  est.near = !cal.highlights.empty() && 2 * est.determined >= static_cast<int>(cal.highlights.size());
+  if (!est.near) return est;
+  est.distance_mm = median(distances);
+  est.median_miss_mm = median(misses);
+  for (size_t k = 0; k < rays.size(); ++k) {
+    Vec3 start = {0, 0, 0};
+    if (est.fixes[k].determined) {
+      start = est.fixes[k].position_mm;
+    } else {
+      for (const auto& r : rays[k])
+        for (int c = 0; c < 3; ++c) start[c] += r.direction[c];
+    }
+    std::vector<double> res;
+    est.directions.push_back(LampDirectionAtDistance(rays[k], est.distance_mm, start, &res));
+    est.residual_deg.push_back(*std::max_element(res.begin(), res.end()));
+  }
+  return est;
+}
+
 Result<SphereCalibration> CalibrateFromSpheres(const LightStack& stack,
                                                const std::vector<SphereCircle>& spheres,
                                                const CameraModel& camera,
                                                const HighlightOptions& options,
-                                               double max_disagreement_deg) {
+                                               double max_disagreement_deg,
+                                               const SphereField& field) {
   SphereCalibration cal;
   cal.spheres = spheres;
   for (size_t k = 0; k < stack.size(); ++k) {
@@ -455,15 +539,35 @@ Result<SphereCalibration> CalibrateFromSpheres(const LightStack& stack,
     for (size_t a = 0; a < hs.size(); ++a)
       for (size_t b = a + 1; b < hs.size(); ++b)
         worst = std::max(worst, AngleDeg(hs[a].direction, hs[b].direction));
-    if (worst > max_disagreement_deg)
-      return MakeError(ErrorCode::kInvalidInput, stack.names[k],
-                       "the spheres disagree on the light direction by {:.2f} deg (at most {:.2f}; "
-                       "a sphere misplaced, or a lamp so near that --max-disagreement must allow "
-                       "its parallax)", worst, max_disagreement_deg);
     cal.directions.push_back(Normalize(sum));
     cal.highlights.push_back(std::move(hs));
     cal.sphere_disagreement_deg.push_back(worst);
   }
+  if (field.field_height_mm > 0) {
+    RIG_ASSIGN_OR_RETURN(LampEstimate lamp,
+                         EstimateLamp(cal, stack.width, stack.height, camera, field));
+    cal.lamp = std::move(lamp);
+  }
+  if (cal.lamp && cal.lamp->near) {
+    // Each sphere sees a near lamp from its own place: what must agree is every sphere's ray
+    // with the lamp the rays triangulate, and the direction is the one from the arm's centre.
+    for (size_t k = 0; k < stack.size(); ++k)
+      if (cal.lamp->residual_deg[k] > max_disagreement_deg)
+        return MakeError(ErrorCode::kInvalidInput, stack.names[k],
+                         "a sphere's ray misses the lamp the spheres triangulate ({:.0f} mm from "
+                         "the arm's centre) by {:.2f} deg (at most {:.2f}): a sphere misplaced, "
+                         "or its depth wrong", cal.lamp->distance_mm, cal.lamp->residual_deg[k],
+                         max_disagreement_deg);
+    cal.directions = cal.lamp->directions;
+    return cal;
+  }
+  for (size_t k = 0; k < stack.size(); ++k)
+    if (cal.sphere_disagreement_deg[k] > max_disagreement_deg)
+      return MakeError(ErrorCode::kInvalidInput, stack.names[k],
+                       "the spheres disagree on the light direction by {:.2f} deg (at most {:.2f}; "
+                       "a sphere misplaced, or a lamp so near that it shows parallax: give the "
+                       "field's height to triangulate it, or a --max-disagreement that allows it)",
+                       cal.sphere_disagreement_deg[k], max_disagreement_deg);
   return cal;
 }
 
