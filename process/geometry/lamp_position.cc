@@ -90,7 +90,7 @@ LampFix TriangulateRays(const std::vector<LampRay>& rays, const LampOptions& opt
   fix.sigma_mm = std::sqrt(std::max(0.0, u.dot(cov * u)));
   fix.determined = fix.sigma_mm <= options.max_relative_sigma * fix.distance_mm;
   if (!fix.determined)
-    fix.note = fmt::format("the distance is uncertain: {:.0f} +- {:.0f} mm (parallax {:.2f} deg)",
+    fix.note = fmt::format("uncertain, {:.0f} +- {:.0f} mm (parallax {:.2f} deg)",
                            fix.distance_mm, fix.sigma_mm, fix.parallax_deg);
   return fix;
 }

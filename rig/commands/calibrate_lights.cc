@@ -34,6 +34,8 @@ int RunCalibrateLights(int argc, char** argv) {
                "rig calibrate-lights"};
   std::string source, lp, images, out, log_level;
   std::vector<std::string> sphere_args;
+  std::vector<double> sphere_depth_mm;
+  double field_height_mm = 0;
   double focal_mm = 0, sensor_width_mm = 0, max_disagreement = 3.0, min_contrast = 8,
          max_blob = 0.03;
   bool force = false, from_images = false, as_given = false;
@@ -49,8 +51,16 @@ int RunCalibrateLights(int argc, char** argv) {
   app.add_option("--sensor-width-mm", sensor_width_mm, "the sensor's width (mm), with --focal-mm")
       ->check(CLI::PositiveNumber);
   app.add_option("--max-disagreement", max_disagreement,
-                 "largest angle (deg) two spheres may disagree on an image's light")
+                 "largest angle (deg) two spheres may disagree on an image's light (a near lamp "
+                 "whose position is estimated: a sphere's ray may miss the lamp)")
       ->check(CLI::PositiveNumber);
+  app.add_option("--field-height-mm", field_height_mm, "the image's height at the object (mm): "
+                 "with two or more spheres, the lamp's position and distance are estimated "
+                 "(default: a session's [light_frame] field_height_mm)")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--sphere-depth-mm", sphere_depth_mm, "a sphere centre's z (mm, towards the "
+                 "camera from the plane through the arm's centre), one for all or one per sphere "
+                 "in order; default: every sphere resting on that plane (z = its radius)");
   app.add_option("--min-contrast", min_contrast, "a highlight's peak over the sphere's median")
       ->check(CLI::PositiveNumber);
   app.add_option("--max-blob", max_blob, "largest highlight blob, as a fraction of the sphere")
@@ -99,6 +109,14 @@ int RunCalibrateLights(int argc, char** argv) {
   }
   const LightStack& stack = src->stack;
   if (focal_mm > 0) camera.focal_px = focal_mm / sensor_width_mm * stack.width;
+  const double session_field_mm =
+      src->session_config ? src->session_config->light_frame.field_height_mm : 0.0;
+  if (!sphere_depth_mm.empty() && field_height_mm <= 0 && session_field_mm <= 0) {
+    std::fprintf(stderr, "rig calibrate-lights: --sphere-depth-mm places the spheres for the "
+                         "lamp's position, which needs --field-height-mm (or a session's "
+                         "[light_frame] field_height_mm)\n");
+    return 2;
+  }
   if (out.empty()) {
     if (src->kind != "session") {
       std::fprintf(stderr, "rig calibrate-lights: --out FILE.lp is required for --lp and --images\n");
@@ -180,8 +198,76 @@ int RunCalibrateLights(int argc, char** argv) {
   for (size_t i = 0; i < spheres.size(); ++i)
     std::printf("sphere %zu: centre (%.2f, %.2f) px, radius %.2f px\n", i + 1, spheres[i].cx,
                 spheres[i].cy, spheres[i].r);
-  auto cal = CalibrateFromSpheres(stack, spheres, camera, ho, max_disagreement);
+  // The lamp's position: asked for with --field-height-mm or --sphere-depth-mm (its errors
+  // are the user's), or tried when a session's config knows the field and the capture allows.
+  SphereField field;
+  field.depth_mm = sphere_depth_mm;
+  if (field_height_mm > 0 || !sphere_depth_mm.empty()) {
+    field.field_height_mm = field_height_mm > 0 ? field_height_mm : session_field_mm;
+  } else if (session_field_mm > 0) {
+    const double h = session_field_mm;
+    if (spheres.size() < 2)
+      std::printf("lamp position: not estimated (one sphere sees the lamp's direction, not its "
+                  "distance; two at different places in the field triangulate it)\n");
+    else if (camera.perspective())
+      std::printf("lamp position: not estimated (the spheres are placed with the orthographic "
+                  "model only)\n");
+    else
+      field.field_height_mm = h;
+  }
+  auto cal = CalibrateFromSpheres(stack, spheres, camera, ho, max_disagreement, field);
   if (!cal.ok()) return ReportError("calibrate-lights", cal.error());
+  std::string lamp_toml, lamp_csv;
+  if (cal->lamp) {
+    const LampEstimate& lamp = *cal->lamp;
+    std::string depths;
+    for (double z : lamp.depth_mm) depths += fmt::format("{}{:.1f}", depths.empty() ? "" : ", ", z);
+    std::printf("\nlamp position from %zu spheres (orthographic, field %.1f mm high, origin at the "
+                "arm's centre = the image centre; sphere centres at z = %s mm, %s):\n",
+                spheres.size(), field.field_height_mm, depths.c_str(),
+                lamp.depth_assumed ? "assumed resting on the plane z = 0" : "as given");
+    std::printf("%-12s %8s %8s %8s %11s %8s %8s %9s\n", "image", "x_mm", "y_mm", "z_mm",
+                "distance_mm", "sigma_mm", "miss_mm", "parallax");
+    lamp_csv = "image,determined,x_mm,y_mm,z_mm,distance_mm,sigma_mm,miss_mm,parallax_deg\n";
+    for (size_t k = 0; k < stack.size(); ++k) {
+      const LampFix& f = lamp.fixes[k];
+      const std::string name = fs::path(stack.names[k]).filename().string();
+      if (f.determined)
+        std::printf("%-12s %8.1f %8.1f %8.1f %11.1f %8.1f %8.3f %8.2f\n", name.c_str(),
+                    f.position_mm[0], f.position_mm[1], f.position_mm[2], f.distance_mm,
+                    f.sigma_mm, f.miss_mm, f.parallax_deg);
+      else
+        std::printf("%-12s no distance: %s\n", name.c_str(), f.note.c_str());
+      lamp_csv += fmt::format("{},{},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{:.4f},{:.4f}\n", name,
+                              f.determined ? 1 : 0, f.position_mm[0], f.position_mm[1],
+                              f.position_mm[2], f.distance_mm, f.sigma_mm, f.miss_mm,
+                              f.parallax_deg);
+    }
+    if (lamp.near) {
+      double parallax = 0, residual = 0;
+      for (size_t k = 0; k < stack.size(); ++k) {
+        parallax = std::max(parallax, cal->sphere_disagreement_deg[k]);
+        residual = std::max(residual, lamp.residual_deg[k]);
+      }
+      std::printf("lamp: near, %.1f mm from the arm's centre (median of the %d of %zu images that "
+                  "give a distance), median ray miss %.3f mm\n", lamp.distance_mm,
+                  lamp.determined, stack.size(), lamp.median_miss_mm);
+      std::printf("directions: from the arm's centre to the lamp at that distance (the spheres "
+                  "see it up to %.2f deg apart; their rays miss it by at most %.2f deg)\n",
+                  parallax, residual);
+      lamp_toml = fmt::format("lamp_distance_mm = {:.1f}  # median of {} of {} images, {} "
+                              "spheres, ray miss {:.3f} mm\nfield_height_mm = {:.3f}\n",
+                              lamp.distance_mm, lamp.determined, stack.size(), spheres.size(),
+                              lamp.median_miss_mm, field.field_height_mm);
+    } else {
+      std::printf("lamp: far (%d of %zu images give a distance; these spheres resolve one up to "
+                  "~%.0f mm): directions as for a far lamp, the spheres' mean\n",
+                  lamp.determined, stack.size(), lamp.resolvable_mm);
+      lamp_toml = fmt::format("lamp_distance_mm = 0  # far: beyond the ~{:.0f} mm {} spheres "
+                              "resolve\n", lamp.resolvable_mm, spheres.size());
+    }
+    std::printf("suggested: [light_frame] %s", lamp_toml.c_str());
+  }
 
   // The .lp: image paths relative to its folder.
   const fs::path out_dir = fs::absolute(out, ec).parent_path();
@@ -229,13 +315,17 @@ int RunCalibrateLights(int argc, char** argv) {
               "[light_frame] cannot hold a tilt\n", fit->tilt_deg, fit->rms_with_tilt_deg);
   const std::string toml = fmt::format(
       "# fitted by rig calibrate-lights from {} chrome sphere(s), {} poses; rms {:.3f} deg\n"
-      "[light_frame]\nh_offset_deg = {:.4f}\nv_offset_deg = {:.4f}\nh_sign = {}\nv_sign = {}\n",
-      spheres.size(), stack.size(), fit->rms_deg, f.h_offset_deg, f.v_offset_deg, f.h_sign, f.v_sign);
+      "[light_frame]\nh_offset_deg = {:.4f}\nv_offset_deg = {:.4f}\nh_sign = {}\nv_sign = {}\n{}",
+      spheres.size(), stack.size(), fit->rms_deg, f.h_offset_deg, f.v_offset_deg, f.h_sign, f.v_sign,
+      lamp_toml);
   std::printf("\n%s", toml.c_str());
   std::printf("(the session ran with h_offset_deg = %.4f, v_offset_deg = %.4f, h_sign = %d, "
-              "v_sign = %d)\n", was.h_offset_deg, was.v_offset_deg, was.h_sign, was.v_sign);
-  for (const auto& [name, text] : {std::pair<std::string, std::string>{"light_frame.toml", toml},
-                                   {"lights.csv", csv}}) {
+              "v_sign = %d, lamp_distance_mm = %.1f)\n", was.h_offset_deg, was.v_offset_deg,
+              was.h_sign, was.v_sign, was.lamp_distance_mm);
+  std::vector<std::pair<std::string, std::string>> files = {{"light_frame.toml", toml},
+                                                            {"lights.csv", csv}};
+  if (!lamp_csv.empty()) files.emplace_back("lamp.csv", lamp_csv);
+  for (const auto& [name, text] : files) {
     const fs::path p = out_dir / name;
     if (fs::exists(p, ec) && !force) {
       std::fprintf(stderr, "rig calibrate-lights: %s exists (give --force to replace it)\n",
