@@ -119,9 +119,11 @@ bool FitCircle(const std::vector<cv::Point2d>& pts, SphereCircle* out) {
 }  // namespace
 
 std::string CameraModel::Describe() const {
-  return perspective() ? fmt::format("perspective, focal length {:.1f} px, principal point at "
-                                     "the image centre", focal_px)
-                       : "orthographic (view direction +z at every pixel)";
+  const std::string what =
+      perspective() ? fmt::format("perspective, focal length {:.1f} px, principal point at the "
+                                  "image centre", focal_px)
+                    : "orthographic (view direction +z at every pixel)";
+  return source.empty() ? what : what + "; " + source;
 }
 
 double AngleDeg(const Vec3& a, const Vec3& b) {

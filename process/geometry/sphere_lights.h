@@ -28,6 +28,7 @@ struct SphereCircle {
 
 struct CameraModel {
   double focal_px = 0;  // 0: orthographic
+  std::string source;   // where the model came from (said in Describe), e.g. "--focal-mm"
   bool perspective() const { return focal_px > 0; }
   std::string Describe() const;
 };

@@ -9,6 +9,7 @@
 #include "process/geometry/light_refit_loo.h"
 #include "process/geometry/photometric_stereo.h"
 #include "process/export/relight_files.h"
+#include "process/io/exif.h"
 #include "process/geometry/sphere_lights.h"
 #include "process/model/rti_fit.h"
 #include "rig/commands/command.h"
@@ -47,7 +48,8 @@ int RunCalibrateLights(int argc, char** argv) {
   app.add_option("--sphere", sphere_args, "a chrome sphere's circle CX,CY,R in pixels (repeat for "
                  "several; default: found automatically)");
   app.add_option("--focal-mm", focal_mm, "perspective camera: the lens's focal length (mm); "
-                 "default: orthographic")->check(CLI::PositiveNumber);
+                 "default: the first photograph's EXIF (FocalLength with FocalPlaneXResolution "
+                 "or FocalLengthIn35mmFilm), else orthographic")->check(CLI::PositiveNumber);
   app.add_option("--sensor-width-mm", sensor_width_mm, "the sensor's width (mm), with --focal-mm")
       ->check(CLI::PositiveNumber);
   app.add_option("--max-disagreement", max_disagreement,
@@ -108,7 +110,31 @@ int RunCalibrateLights(int argc, char** argv) {
     return 2;
   }
   const LightStack& stack = src->stack;
-  if (focal_mm > 0) camera.focal_px = focal_mm / sensor_width_mm * stack.width;
+  if (focal_mm > 0) {
+    camera.focal_px = focal_mm / sensor_width_mm * stack.width;
+    camera.source = fmt::format("from --focal-mm {} and --sensor-width-mm {}", focal_mm,
+                                sensor_width_mm);
+  } else if (!from_images) {
+    // No lens given: the photographs' EXIF, if they carry a focal length and a sensor width.
+    if (src->first_photo.empty()) {
+      camera.source = "no --focal-mm, and no photograph to read EXIF from";
+    } else {
+      auto lens = ReadExifLens(src->first_photo);
+      if (!lens.ok()) return ReportError("calibrate-lights", lens.error());
+      const ExifFocal f = FocalFromExif(*lens, stack.width, stack.height);
+      if (f.focal_mm > 0) {
+        camera.focal_px = f.focal_mm / f.sensor_width_mm * stack.width;
+        camera.source = fmt::format("from the EXIF of {}: {}", src->first_photo, f.how);
+      } else {
+        camera.source = fmt::format(
+            "no --focal-mm, and {} {}", src->first_photo,
+            !lens->has_exif ? "has no EXIF"
+            : lens->focal_mm > 0 ? "has an EXIF FocalLength but neither FocalPlaneXResolution "
+                                   "nor FocalLengthIn35mmFilm to give the sensor's width"
+                                 : "has no EXIF focal length");
+      }
+    }
+  }
   const double session_field_mm =
       src->session_config ? src->session_config->light_frame.field_height_mm : 0.0;
   if (!sphere_depth_mm.empty() && field_height_mm <= 0 && session_field_mm <= 0) {

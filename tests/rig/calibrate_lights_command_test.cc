@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include <gmock/gmock.h>
+#include <opencv2/imgcodecs.hpp>
 #include <toml++/toml.h>
 #include <gtest/gtest.h>
 
@@ -13,7 +14,10 @@
 #include "process/geometry/photometric_stereo.h"
 #include "process/geometry/sphere_lights.h"
 #include "process/io/exr_io.h"
+#include "process/model/fit.h"
+#include "sim/scene.h"
 #include "sim/truth.h"
+#include "tests/support/exif_jpeg.h"
 #include "tests/support/run_rig.h"
 
 namespace rig {
@@ -271,6 +275,99 @@ TEST_F(CalibrateNearLamp, TwoSpheresGiveTheLampsDistanceAndDirectionsFromTheArms
   toml::table ta = toml::parse_file(*session_ + "/calib/light_frame.toml");
   std::printf("dry-run session, near lamp 300 mm, depths assumed: lamp_distance_mm %.1f\n",
               ta["light_frame"]["lamp_distance_mm"].value_or(-1.0));
+}
+
+// 12 JPEGs of the simulator's exact scene (one chrome sphere, far lamp) in `dir`, with EXIF
+// `tags` or none; their true directions. `sphere`: the chrome sphere's true circle, as
+// --sphere's argument.
+std::vector<Vec3> WriteSimJpegs(const std::string& dir, const testing::ExifTags* tags,
+                                std::string* sphere = nullptr) {
+  SimConfig sim;
+  sim.scene = "matte";
+  sim.chrome_spheres = 1;
+  auto scene = SimScene::Create(sim);
+  EXPECT_TRUE(scene.ok());
+  fs::create_directories(dir);
+  const auto c = scene->CalibrationSpheres()[0];
+  if (sphere) *sphere = fmt::format("{},{},{}", c.cx_px, c.cy_px, c.r_px);
+  std::vector<Vec3> truth;
+  for (int h = 0; h <= 90; h += 30)  // the order of the sorted file names, the .lp's
+    for (int v = 0; v <= 20; v += 10) {
+      const Vec3 l = LightDirection(h, v);
+      cv::Mat rad = scene->Radiance(l, {1, 1, 1});
+      // The plane's light cells near 0.5 of white: the chrome highlight clips over a few pixels.
+      rad *= 0.5 / 3000.0;
+      cv::Mat img(rad.rows, rad.cols, CV_8UC3);
+      for (int y = 0; y < rad.rows; ++y)
+        for (int x = 0; x < rad.cols * 3; ++x)
+          img.ptr<uint8_t>(y)[x] = static_cast<uint8_t>(std::lround(
+              255 * SrgbEncode(std::clamp(rad.ptr<float>(y)[x], 0.0f, 1.0f))));
+      const std::string path = fmt::format("{}/h{:03d}_v{:02d}.jpg", dir, h, v);
+      if (tags)
+        EXPECT_TRUE(testing::WriteJpegWithExif(path, img, *tags));
+      else
+        EXPECT_TRUE(cv::imwrite(path, img, {cv::IMWRITE_JPEG_QUALITY, 95}));
+      truth.push_back(l);
+    }
+  return truth;
+}
+
+// The .lp's directions against `truth`: the largest angle.
+double WorstLpError(const std::string& lp, const std::vector<Vec3>& truth) {
+  std::ifstream in(lp);
+  std::string line;
+  std::getline(in, line);
+  double worst = 0;
+  for (size_t k = 0; k < truth.size() && std::getline(in, line); ++k) {
+    std::stringstream ss(line);
+    std::string name;
+    Vec3 d;
+    ss >> name >> d[0] >> d[1] >> d[2];
+    worst = std::max(worst, AngleDeg(d, truth[k]));
+  }
+  return worst;
+}
+
+TEST(CalibrateLightsExif, TheFocalLengthComesFromTheExifOrTheModelIsOrthographicSaidSo) {
+  const std::string dir = testing::FreshTempDir("lights-exif");
+  // A machine-vision body: an 800 mm lens on a sensor 6.4 mm wide (the 320 px image at 500 px
+  // per cm, no PixelXDimension: the image's own width): 40000 px, near-orthographic.
+  testing::ExifTags tags;
+  tags.focal_mm = 800;
+  tags.focal_plane_x_res = 500;
+  tags.focal_plane_unit = 3;
+  std::string sphere;
+  const auto truth = WriteSimJpegs(dir + "/exif", &tags, &sphere);
+  // The sphere given (its true circle): this test is about the camera model, not the finding.
+  auto r = RunRig(fmt::format("calibrate-lights --images {}/exif --out {}/exif.lp --sphere {} "
+                              "--as-given", dir, dir, sphere));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("perspective, focal length 40000.0 px"));
+  EXPECT_THAT(r.output, HasSubstr("from the EXIF of"));
+  EXPECT_THAT(r.output, HasSubstr("h000_v00.jpg: EXIF FocalLength 800.00 mm, sensor 6.40 mm wide"));
+  // 8-bit JPEGs whose highlight clips over a few pixels: within a degree (the sessions' HDR
+  // maps reach 0.5 deg); a 40000 px lens bends the view rays at the sphere by ~0.2 deg only.
+  const double with_exif = WorstLpError(dir + "/exif.lp", truth);
+  EXPECT_LT(with_exif, 1.0);
+  // --focal-mm overrides the EXIF, and says so; a wide lens moves the directions.
+  auto g = RunRig(fmt::format("calibrate-lights --images {}/exif --out {}/given.lp --focal-mm 8 "
+                              "--sensor-width-mm 6.4 --sphere {} --as-given", dir, dir, sphere));
+  ASSERT_EQ(g.status, 0) << g.output;
+  EXPECT_THAT(g.output, HasSubstr("focal length 400.0 px"));
+  EXPECT_THAT(g.output, HasSubstr("from --focal-mm 8"));
+  EXPECT_GT(WorstLpError(dir + "/given.lp", truth), 2.0);
+  // No EXIF: orthographic, and the output says why.
+  WriteSimJpegs(dir + "/plain", nullptr);
+  auto p = RunRig(fmt::format("calibrate-lights --images {}/plain --out {}/plain.lp --sphere {} "
+                              "--as-given", dir, dir, sphere));
+  ASSERT_EQ(p.status, 0) << p.output;
+  EXPECT_THAT(p.output, HasSubstr("orthographic"));
+  EXPECT_THAT(p.output, HasSubstr("has no EXIF"));
+  const double plain = WorstLpError(dir + "/plain.lp", truth);
+  std::printf("JPEGs with EXIF (800 mm on 6.4 mm): worst direction %.3f deg; without EXIF "
+              "(orthographic): %.3f deg\n", with_exif, plain);
+  EXPECT_LT(plain, 1.0);
+  fs::remove_all(dir);
 }
 
 }  // namespace
