@@ -87,13 +87,23 @@ struct SphereField {
   // accuracy process_lights_test asserts, and it matches the sessions' largest direction error
   // (0.35 deg on a 33.6 px sphere, docs/lights.md).
   double edge_px = 0.1;
+  // Fit every sphere's depth (from `depth_mm` or the resting default) together with the lamp's
+  // one distance from the arm's centre over all images: a near lamp on an arm keeps its
+  // distance, and grazing lamps see a depth error as a shift across their rays. Assumes the
+  // arm's centre at the image centre.
+  bool fit_depths = false;
   LampOptions lamp;
 };
 
 struct LampEstimate {
   std::vector<LampFix> fixes;  // per image
   std::vector<double> depth_mm;  // every sphere centre's z used
-  bool depth_assumed = true;     // resting on the plane (no depth given)
+  bool depth_assumed = true;     // resting on the plane (no depth given, none fitted)
+  // With SphereField::fit_depths: the depths' 1-sigma, where the fit started, and the fit's
+  // own distance (1-sigma) and rms residual (in units of the directions' assumed sigma).
+  bool depth_fitted = false;
+  std::vector<double> depth_sigma_mm, depth_start_mm;
+  double fit_distance_mm = 0, fit_distance_sigma_mm = 0, fit_rms = 0;
   int determined = 0;            // images whose fix is determined
   // Near: the lamp's distance is determined in at least half of the images; distance_mm is
   // the median over those, median_miss_mm their median ray miss.
@@ -111,7 +121,7 @@ struct SphereCalibration;
 // The lamp's position in every image from the highlights of two or more spheres (`cal`, as
 // CalibrateFromSpheres found them, its directions not needed). Errors (kInvalidInput): fewer
 // than two spheres, overlapping spheres, no field height, a perspective camera, a depth list
-// whose length is neither 1 nor the spheres'.
+// whose length is neither 1 nor the spheres'; depths to fit from a far lamp.
 Result<LampEstimate> EstimateLamp(const SphereCalibration& cal, int width, int height,
                                   const CameraModel& camera, const SphereField& field);
 

@@ -39,7 +39,7 @@ int RunCalibrateLights(int argc, char** argv) {
   double field_height_mm = 0;
   double focal_mm = 0, sensor_width_mm = 0, max_disagreement = 3.0, min_contrast = 8,
          max_blob = 0.03;
-  bool force = false, from_images = false, as_given = false;
+  bool force = false, from_images = false, as_given = false, fit_depths = false;
   std::string loo_report;
   int loo_every = 6, rounds = 3, threads = 2;
   app.add_option("source", source, "a session folder");
@@ -63,6 +63,9 @@ int RunCalibrateLights(int argc, char** argv) {
   app.add_option("--sphere-depth-mm", sphere_depth_mm, "a sphere centre's z (mm, towards the "
                  "camera from the plane through the arm's centre), one for all or one per sphere "
                  "in order; default: every sphere resting on that plane (z = its radius)");
+  app.add_flag("--fit-sphere-depths", fit_depths, "a near lamp on the arm: fit the spheres' depths "
+               "(from --sphere-depth-mm or the default) with the lamp's one distance from the "
+               "arm's centre over all images");
   app.add_option("--min-contrast", min_contrast, "a highlight's peak over the sphere's median")
       ->check(CLI::PositiveNumber);
   app.add_option("--max-blob", max_blob, "largest highlight blob, as a fraction of the sphere")
@@ -137,8 +140,8 @@ int RunCalibrateLights(int argc, char** argv) {
   }
   const double session_field_mm =
       src->session_config ? src->session_config->light_frame.field_height_mm : 0.0;
-  if (!sphere_depth_mm.empty() && field_height_mm <= 0 && session_field_mm <= 0) {
-    std::fprintf(stderr, "rig calibrate-lights: --sphere-depth-mm places the spheres for the "
+  if ((!sphere_depth_mm.empty() || fit_depths) && field_height_mm <= 0 && session_field_mm <= 0) {
+    std::fprintf(stderr, "rig calibrate-lights: --sphere-depth-mm and --fit-sphere-depths place the spheres for the "
                          "lamp's position, which needs --field-height-mm (or a session's "
                          "[light_frame] field_height_mm)\n");
     return 2;
@@ -228,7 +231,8 @@ int RunCalibrateLights(int argc, char** argv) {
   // are the user's), or tried when a session's config knows the field and the capture allows.
   SphereField field;
   field.depth_mm = sphere_depth_mm;
-  if (field_height_mm > 0 || !sphere_depth_mm.empty()) {
+  field.fit_depths = fit_depths;
+  if (field_height_mm > 0 || !sphere_depth_mm.empty() || fit_depths) {
     field.field_height_mm = field_height_mm > 0 ? field_height_mm : session_field_mm;
   } else if (session_field_mm > 0) {
     const double h = session_field_mm;
@@ -251,7 +255,21 @@ int RunCalibrateLights(int argc, char** argv) {
     std::printf("\nlamp position from %zu spheres (orthographic, field %.1f mm high, origin at the "
                 "arm's centre = the image centre; sphere centres at z = %s mm, %s):\n",
                 spheres.size(), field.field_height_mm, depths.c_str(),
-                lamp.depth_assumed ? "assumed resting on the plane z = 0" : "as given");
+                lamp.depth_fitted    ? "fitted"
+                : lamp.depth_assumed ? "assumed resting on the plane z = 0"
+                                     : "as given");
+    if (lamp.depth_fitted) {
+      std::string fitted, start;
+      for (size_t j = 0; j < lamp.depth_mm.size(); ++j) {
+        fitted += fmt::format("{}{:.1f} +- {:.1f}", j ? ", " : "", lamp.depth_mm[j],
+                              lamp.depth_sigma_mm[j]);
+        start += fmt::format("{}{:.1f}", j ? ", " : "", lamp.depth_start_mm[j]);
+      }
+      std::printf("sphere depths fitted with the lamp's one distance over all images: z = %s mm "
+                  "(1-sigma at %.2f px of highlight; from %s mm); the fit's distance %.1f +- %.1f "
+                  "mm, rms %.2f of that sigma\n", fitted.c_str(), field.edge_px, start.c_str(),
+                  lamp.fit_distance_mm, lamp.fit_distance_sigma_mm, lamp.fit_rms);
+    }
     std::printf("%-12s %8s %8s %8s %11s %8s %8s %9s\n", "image", "x_mm", "y_mm", "z_mm",
                 "distance_mm", "sigma_mm", "miss_mm", "parallax");
     lamp_csv = "image,determined,x_mm,y_mm,z_mm,distance_mm,sigma_mm,miss_mm,parallax_deg\n";
@@ -281,6 +299,10 @@ int RunCalibrateLights(int argc, char** argv) {
       std::printf("directions: from the arm's centre to the lamp at that distance (the spheres "
                   "see it up to %.2f deg apart; their rays miss it by at most %.2f deg)\n",
                   parallax, residual);
+      if (lamp.depth_assumed)
+        std::printf("(the spheres' depths are assumed: where they do not rest on the plane "
+                    "through the arm's centre, give --sphere-depth-mm, or --fit-sphere-depths for "
+                    "a lamp on the arm; docs/lights.md measures what a wrong depth costs)\n");
       lamp_toml = fmt::format("lamp_distance_mm = {:.1f}  # median of {} of {} images, {} "
                               "spheres, ray miss {:.3f} mm\nfield_height_mm = {:.3f}\n",
                               lamp.distance_mm, lamp.determined, stack.size(), spheres.size(),

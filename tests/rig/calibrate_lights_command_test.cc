@@ -54,8 +54,10 @@ matte_sphere = true
 std::string* CalibrateLights::dir_ = nullptr;
 std::string* CalibrateLights::session_ = nullptr;
 
-// The fitted offsets and the .lp's directions against the truth, from a run's files.
-void CheckRun(const std::string& calib, double offset_tol, double dir_tol, const char* what) {
+// The fitted offsets and the .lp's directions against the truth, from a run's files; the
+// largest direction error in `worst_out` if given.
+void CheckRun(const std::string& calib, double offset_tol, double dir_tol, const char* what,
+              double* worst_out = nullptr) {
   toml::table t = toml::parse_file(calib + "/light_frame.toml");
   const double h_off = t["light_frame"]["h_offset_deg"].value_or(1e9);
   const double v_off = t["light_frame"]["v_offset_deg"].value_or(1e9);
@@ -87,6 +89,7 @@ void CheckRun(const std::string& calib, double offset_tol, double dir_tol, const
   EXPECT_EQ(t["light_frame"]["v_sign"].value_or(0), 1);
   EXPECT_LT(sum / n, dir_tol) << what;
   EXPECT_LT(worst, dir_tol) << what;
+  if (worst_out) *worst_out = worst;
 }
 
 TEST_F(CalibrateLights, RecoversDirectionsAndArmOffsetsFromTheSphere) {
@@ -272,9 +275,26 @@ TEST_F(CalibrateNearLamp, TwoSpheresGiveTheLampsDistanceAndDirectionsFromTheArms
   auto a = RunRig("calibrate-lights " + *session_ + " --force");
   ASSERT_EQ(a.status, 0) << a.output;
   EXPECT_THAT(a.output, HasSubstr("assumed resting on the plane"));
+  double worst_assumed = 0;
+  CheckRun(*session_ + "/calib", 90, 90, "near lamp, two spheres, depths assumed", &worst_assumed);
   toml::table ta = toml::parse_file(*session_ + "/calib/light_frame.toml");
   std::printf("dry-run session, near lamp 300 mm, depths assumed: lamp_distance_mm %.1f\n",
               ta["light_frame"]["lamp_distance_mm"].value_or(-1.0));
+
+  // The depths fitted from the arm's geometry (the lamp's one distance), from that assumption:
+  // the largest direction error a third of the assumption's at most, under 1.5 deg (the depths
+  // come out ~5 mm off through the camera, inside their ~10 mm 1-sigma; 0.6 deg on exact
+  // radiance, process_lights_test), the offsets within 1 deg, the distance within 1-sigma.
+  auto f = RunRig("calibrate-lights " + *session_ + " --fit-sphere-depths --force");
+  ASSERT_EQ(f.status, 0) << f.output;
+  EXPECT_THAT(f.output, HasSubstr("sphere depths fitted"));
+  double worst_fitted = 0;
+  CheckRun(*session_ + "/calib", 1.0, 1.5, "near lamp, two spheres, depths fitted", &worst_fitted);
+  EXPECT_LT(worst_fitted, worst_assumed / 3);
+  toml::table tf = toml::parse_file(*session_ + "/calib/light_frame.toml");
+  const double df = tf["light_frame"]["lamp_distance_mm"].value_or(-1.0);
+  std::printf("dry-run session, near lamp 300 mm, depths fitted: lamp_distance_mm %.1f\n", df);
+  EXPECT_NEAR(df, 300, sigma);
 }
 
 // 12 JPEGs of the simulator's exact scene (one chrome sphere, far lamp) in `dir`, with EXIF
