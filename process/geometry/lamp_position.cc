@@ -49,7 +49,8 @@ LampFix TriangulateRays(const std::vector<LampRay>& rays, const LampOptions& opt
       const Eigen::Vector3d mean = (d[a] + d[b]).normalized();
       const double across = (Perp(mean) * (o[a] - o[b])).norm();
       const double sigma_g = std::hypot(rays[a].sigma_rad, rays[b].sigma_rad);
-      fix.resolvable_mm = std::max(fix.resolvable_mm, options.max_relative_sigma * across / sigma_g);
+      fix.resolvable_mm =
+          std::max(fix.resolvable_mm, options.max_relative_sigma * across / sigma_g);
     }
   std::vector<double> w(n);
   for (size_t i = 0; i < n; ++i) w[i] = 1.0 / (rays[i].sigma_rad * rays[i].sigma_rad);
@@ -72,8 +73,8 @@ LampFix TriangulateRays(const std::vector<LampRay>& rays, const LampOptions& opt
     for (size_t i = 0; i < n; ++i) {
       const double range = d[i].dot(s - o[i]);
       if (range <= 0) {
-        fix.note = fmt::format("the rays diverge (parallax {:.2f} deg): the lamp is beyond what the "
-                               "spheres resolve, or a sphere is misplaced", fix.parallax_deg);
+        fix.note = fmt::format("the rays diverge (parallax {:.2f} deg): the lamp is beyond what "
+                               "the spheres resolve, or a sphere is misplaced", fix.parallax_deg);
         return fix;
       }
       w[i] = 1.0 / std::pow(rays[i].sigma_rad * range, 2);
@@ -101,7 +102,8 @@ Vec3 LampDirectionAtDistance(const std::vector<LampRay>& rays, double distance_m
   Eigen::Vector3d u = E(start).normalized();
   for (int iter = 0; iter < 30; ++iter) {
     // A basis of the tangent plane at u.
-    const Eigen::Vector3d any = std::abs(u(0)) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+    const Eigen::Vector3d any =
+        std::abs(u(0)) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
     const Eigen::Vector3d e1 = u.cross(any).normalized(), e2 = u.cross(e1);
     Eigen::Matrix2d h = Eigen::Matrix2d::Zero();
     Eigen::Vector2d g = Eigen::Vector2d::Zero();

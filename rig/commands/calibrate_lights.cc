@@ -39,7 +39,8 @@ int RunCalibrateLights(int argc, char** argv) {
   double field_height_mm = 0;
   double focal_mm = 0, sensor_width_mm = 0, max_disagreement = 3.0, min_contrast = 8,
          max_blob = 0.03;
-  bool force = false, from_images = false, as_given = false, fit_depths = false;
+  bool force = false, from_images = false, as_given = false, fit_depths = false,
+       orthographic = false;
   std::string loo_report;
   int loo_every = 6, rounds = 3, threads = 2;
   app.add_option("source", source, "a session folder");
@@ -52,6 +53,7 @@ int RunCalibrateLights(int argc, char** argv) {
                  "or FocalLengthIn35mmFilm), else orthographic")->check(CLI::PositiveNumber);
   app.add_option("--sensor-width-mm", sensor_width_mm, "the sensor's width (mm), with --focal-mm")
       ->check(CLI::PositiveNumber);
+  app.add_flag("--orthographic", orthographic, "the orthographic model whatever the EXIF says");
   app.add_option("--max-disagreement", max_disagreement,
                  "largest angle (deg) two spheres may disagree on an image's light (a near lamp "
                  "whose position is estimated: a sphere's ray may miss the lamp)")
@@ -93,6 +95,10 @@ int RunCalibrateLights(int argc, char** argv) {
       std::fprintf(stderr, "rig calibrate-lights: --focal-mm and --sensor-width-mm go together\n");
       return 2;
     }
+    if (orthographic) {
+      std::fprintf(stderr, "rig calibrate-lights: --orthographic or --focal-mm, not both\n");
+      return 2;
+    }
   }
   std::vector<SphereCircle> spheres;
   for (const auto& s : sphere_args) {
@@ -117,6 +123,8 @@ int RunCalibrateLights(int argc, char** argv) {
     camera.focal_px = focal_mm / sensor_width_mm * stack.width;
     camera.source = fmt::format("from --focal-mm {} and --sensor-width-mm {}", focal_mm,
                                 sensor_width_mm);
+  } else if (orthographic) {
+    camera.source = "--orthographic (no EXIF read)";
   } else if (!from_images) {
     // No lens given: the photographs' EXIF, if they carry a focal length and a sensor width.
     if (src->first_photo.empty()) {
@@ -141,9 +149,9 @@ int RunCalibrateLights(int argc, char** argv) {
   const double session_field_mm =
       src->session_config ? src->session_config->light_frame.field_height_mm : 0.0;
   if ((!sphere_depth_mm.empty() || fit_depths) && field_height_mm <= 0 && session_field_mm <= 0) {
-    std::fprintf(stderr, "rig calibrate-lights: --sphere-depth-mm and --fit-sphere-depths place the spheres for the "
-                         "lamp's position, which needs --field-height-mm (or a session's "
-                         "[light_frame] field_height_mm)\n");
+    std::fprintf(stderr, "rig calibrate-lights: --sphere-depth-mm and --fit-sphere-depths place "
+                         "the spheres for the lamp's position, which needs --field-height-mm (or "
+                         "a session's [light_frame] field_height_mm)\n");
     return 2;
   }
   if (out.empty()) {
@@ -235,7 +243,6 @@ int RunCalibrateLights(int argc, char** argv) {
   if (field_height_mm > 0 || !sphere_depth_mm.empty() || fit_depths) {
     field.field_height_mm = field_height_mm > 0 ? field_height_mm : session_field_mm;
   } else if (session_field_mm > 0) {
-    const double h = session_field_mm;
     if (spheres.size() < 2)
       std::printf("lamp position: not estimated (one sphere sees the lamp's direction, not its "
                   "distance; two at different places in the field triangulate it)\n");
@@ -243,7 +250,7 @@ int RunCalibrateLights(int argc, char** argv) {
       std::printf("lamp position: not estimated (the spheres are placed with the orthographic "
                   "model only)\n");
     else
-      field.field_height_mm = h;
+      field.field_height_mm = session_field_mm;
   }
   auto cal = CalibrateFromSpheres(stack, spheres, camera, ho, max_disagreement, field);
   if (!cal.ok()) return ReportError("calibrate-lights", cal.error());
@@ -364,8 +371,8 @@ int RunCalibrateLights(int argc, char** argv) {
   const std::string toml = fmt::format(
       "# fitted by rig calibrate-lights from {} chrome sphere(s), {} poses; rms {:.3f} deg\n"
       "[light_frame]\nh_offset_deg = {:.4f}\nv_offset_deg = {:.4f}\nh_sign = {}\nv_sign = {}\n{}",
-      spheres.size(), stack.size(), fit->rms_deg, f.h_offset_deg, f.v_offset_deg, f.h_sign, f.v_sign,
-      lamp_toml);
+      spheres.size(), stack.size(), fit->rms_deg, f.h_offset_deg, f.v_offset_deg, f.h_sign,
+      f.v_sign, lamp_toml);
   std::printf("\n%s", toml.c_str());
   std::printf("(the session ran with h_offset_deg = %.4f, v_offset_deg = %.4f, h_sign = %d, "
               "v_sign = %d, lamp_distance_mm = %.1f)\n", was.h_offset_deg, was.v_offset_deg,

@@ -376,6 +376,12 @@ TEST(CalibrateLightsExif, TheFocalLengthComesFromTheExifOrTheModelIsOrthographic
   EXPECT_THAT(g.output, HasSubstr("focal length 400.0 px"));
   EXPECT_THAT(g.output, HasSubstr("from --focal-mm 8"));
   EXPECT_GT(WorstLpError(dir + "/given.lp", truth), 2.0);
+  // --orthographic ignores the EXIF.
+  auto o = RunRig(fmt::format("calibrate-lights --images {}/exif --out {}/ortho.lp --orthographic "
+                              "--sphere {} --as-given", dir, dir, sphere));
+  ASSERT_EQ(o.status, 0) << o.output;
+  EXPECT_THAT(o.output,
+              HasSubstr("orthographic (view direction +z at every pixel); --orthographic"));
   // No EXIF: orthographic, and the output says why.
   WriteSimJpegs(dir + "/plain", nullptr);
   auto p = RunRig(fmt::format("calibrate-lights --images {}/plain --out {}/plain.lp --sphere {} "
