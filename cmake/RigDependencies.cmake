@@ -31,6 +31,8 @@ pkg_check_modules(TOMLPP REQUIRED IMPORTED_TARGET tomlplusplus)
 # simulated camera.
 pkg_check_modules(LIBRAW REQUIRED IMPORTED_TARGET libraw_r)
 find_package(TIFF REQUIRED)
+# EXIF (a photograph's focal length for the perspective light calibration).
+pkg_check_modules(LIBEXIF REQUIRED IMPORTED_TARGET libexif)
 # cpp-httplib (Debian libcpp-httplib-dev: the header and its compiled library) for `rig daemon`.
 pkg_check_modules(HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)
 

@@ -10,7 +10,7 @@ packages=(
   # processing
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev libopencv-photo-dev
   libopencv-videoio-dev libopenexr-dev libeigen3-dev libopenblas-dev libjpeg-dev
-  libraw-dev libtiff-dev
+  libraw-dev libtiff-dev libexif-dev
   # infrastructure
   libspdlog-dev libfmt-dev libtomlplusplus-dev libcli11-dev nlohmann-json3-dev
   zlib1g-dev

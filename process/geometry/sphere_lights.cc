@@ -119,9 +119,11 @@ bool FitCircle(const std::vector<cv::Point2d>& pts, SphereCircle* out) {
 }  // namespace
 
 std::string CameraModel::Describe() const {
-  return perspective() ? fmt::format("perspective, focal length {:.1f} px, principal point at "
-                                     "the image centre", focal_px)
-                       : "orthographic (view direction +z at every pixel)";
+  const std::string what =
+      perspective() ? fmt::format("perspective, focal length {:.1f} px, principal point at the "
+                                  "image centre", focal_px)
+                    : "orthographic (view direction +z at every pixel)";
+  return source.empty() ? what : what + "; " + source;
 }
 
 double AngleDeg(const Vec3& a, const Vec3& b) {
@@ -436,11 +438,227 @@ Result<std::vector<SphereCircle>> DetectChromeSpheres(const LightStack& stack,
   return found;
 }
 
+namespace {
+
+// Every image's rays, the spheres placed by the field's scale at centre depths `depths` (mm).
+std::vector<std::vector<LampRay>> SphereRays(const SphereCalibration& cal, int width, int height,
+                                             const SphereField& field,
+                                             const std::vector<double>& depths) {
+  const double mm_per_px = field.field_height_mm / height;
+  std::vector<std::vector<LampRay>> rays(cal.highlights.size());
+  for (size_t k = 0; k < cal.highlights.size(); ++k)
+    for (size_t j = 0; j < cal.spheres.size(); ++j) {
+      const Highlight& h = cal.highlights[k][j];
+      const SphereCircle& c = cal.spheres[j];
+      const double r_mm = c.r * mm_per_px;
+      const Vec3 centre = {(c.cx - width / 2.0) * mm_per_px, (height / 2.0 - c.cy) * mm_per_px,
+                           depths[j]};
+      rays[k].push_back({{centre[0] + r_mm * h.normal[0], centre[1] + r_mm * h.normal[1],
+                          centre[2] + r_mm * h.normal[2]},
+                         h.direction,
+                         2 * field.edge_px / c.r});
+    }
+  return rays;
+}
+
+double MedianOf(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const size_t m = v.size() / 2;
+  return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
+}
+
+Vec3 StartDirection(const LampFix& fix, const std::vector<LampRay>& rays) {
+  if (fix.determined) return fix.position_mm;
+  Vec3 start = {0, 0, 0};
+  for (const auto& r : rays)
+    for (int c = 0; c < 3; ++c) start[c] += r.direction[c];
+  return start;
+}
+
+LampEstimate EstimateAtDepths(const SphereCalibration& cal, int width, int height,
+                              const SphereField& field, const std::vector<double>& depths) {
+  LampEstimate est;
+  est.depth_mm = depths;
+  const auto rays = SphereRays(cal, width, height, field, depths);
+  std::vector<double> distances, misses, resolvable;
+  for (const auto& image_rays : rays) {
+    LampFix fix = TriangulateRays(image_rays, field.lamp);
+    resolvable.push_back(fix.resolvable_mm);
+    if (fix.determined) {
+      ++est.determined;
+      distances.push_back(fix.distance_mm);
+      misses.push_back(fix.miss_mm);
+    }
+    est.fixes.push_back(std::move(fix));
+  }
+  est.resolvable_mm = MedianOf(resolvable);
+  est.near = !rays.empty() && 2 * est.determined >= static_cast<int>(rays.size());
+  if (!est.near) return est;
+  est.distance_mm = MedianOf(distances);
+  est.median_miss_mm = MedianOf(misses);
+  for (size_t k = 0; k < rays.size(); ++k) {
+    std::vector<double> res;
+    est.directions.push_back(LampDirectionAtDistance(rays[k], est.distance_mm,
+                                                     StartDirection(est.fixes[k], rays[k]), &res));
+    est.residual_deg.push_back(*std::max_element(res.begin(), res.end()));
+  }
+  return est;
+}
+
+struct DepthFit {
+  std::vector<double> depth_mm, depth_sigma_mm;
+  double distance_mm = 0, distance_sigma_mm = 0, rms = 0;
+};
+
+// The spheres' depths and the lamp's one distance from the arm's centre, fitted to every image
+// at once (Levenberg-Marquardt, numeric Jacobian; each image's direction solved inside, for
+// the parameters at hand): the lamp moves on a sphere about the arm's centre, so its distance
+// may not change from image to image, and a depth error of a sphere shifts its rays along z,
+// which grazing lamps see. Residuals: each ray's miss over its sigma times its range.
+Result<DepthFit> FitDepths(const SphereCalibration& cal, int width, int height,
+                           const SphereField& field, const std::vector<double>& start_depths,
+                           const LampEstimate& start) {
+  const size_t m = start_depths.size();
+  Eigen::VectorXd p(m + 1);
+  for (size_t j = 0; j < m; ++j) p(j) = start_depths[j];
+  p(m) = start.distance_mm;
+  std::vector<Vec3> dirs = start.directions;
+  auto residuals = [&](const Eigen::VectorXd& q, std::vector<Vec3>* u) {
+    const std::vector<double> depths(q.data(), q.data() + m);
+    const auto rays = SphereRays(cal, width, height, field, depths);
+    Eigen::VectorXd r(3 * m * rays.size());
+    for (size_t k = 0; k < rays.size(); ++k) {
+      (*u)[k] = LampDirectionAtDistance(rays[k], q(m), (*u)[k]);
+      for (size_t j = 0; j < m; ++j) {
+        const LampRay& ray = rays[k][j];
+        const Eigen::Vector3d d(ray.direction[0], ray.direction[1], ray.direction[2]);
+        const Eigen::Vector3d to(q(m) * (*u)[k][0] - ray.origin_mm[0],
+                                 q(m) * (*u)[k][1] - ray.origin_mm[1],
+                                 q(m) * (*u)[k][2] - ray.origin_mm[2]);
+        const Eigen::Vector3d perp = to - d * d.dot(to);
+        r.segment<3>(3 * (k * m + j)) = perp / (ray.sigma_rad * std::max(to.norm(), 1e-9));
+      }
+    }
+    return r;
+  };
+  Eigen::VectorXd r = residuals(p, &dirs);
+  Eigen::MatrixXd jac(r.size(), m + 1);
+  double lambda = 1e-3;
+  for (int iter = 0; iter < 40; ++iter) {
+    for (size_t c = 0; c <= m; ++c) {
+      Eigen::VectorXd q = p;
+      q(c) += 0.01;  // mm
+      std::vector<Vec3> u = dirs;
+      jac.col(c) = (residuals(q, &u) - r) / 0.01;
+    }
+    Eigen::MatrixXd a = jac.transpose() * jac;
+    a.diagonal() *= 1 + lambda;
+    const Eigen::VectorXd step = a.ldlt().solve(-jac.transpose() * r);
+    Eigen::VectorXd q = p + step;
+    if (q(m) <= 0) {
+      lambda *= 10;
+      continue;
+    }
+    std::vector<Vec3> u = dirs;
+    const Eigen::VectorXd rq = residuals(q, &u);
+    if (rq.squaredNorm() < r.squaredNorm()) {
+      p = q;
+      r = rq;
+      dirs = u;
+      lambda *= 0.3;
+      if (step.norm() < 1e-4) break;
+    } else {
+      lambda *= 10;
+      if (lambda > 1e8) break;
+    }
+  }
+  DepthFit fit;
+  const double dof = std::max<double>(1.0, static_cast<double>(r.size()) - (m + 1));
+  // The residuals are in units of the directions' assumed sigma. The covariance is scaled up
+  // when they are larger, never down when smaller: a circle's error (a few hundredths of a
+  // pixel) is the same in every image and does not average out over them, so small residuals
+  // do not make the depths better known than the assumed sigma says.
+  const double chi2 = r.squaredNorm() / dof;
+  fit.rms = std::sqrt(chi2);
+  Eigen::MatrixXd jtj = jac.transpose() * jac;
+  Eigen::FullPivLU<Eigen::MatrixXd> lu(jtj);
+  if (!lu.isInvertible())
+    return MakeError(ErrorCode::kInvalidInput, "(spheres)",
+                     "the spheres' depths cannot be told apart from the lamp's distance with "
+                     "these images (the lamp must reach grazing angles)");
+  const Eigen::MatrixXd cov = lu.inverse() * std::max(1.0, chi2);
+  for (size_t j = 0; j < m; ++j) {
+    fit.depth_mm.push_back(p(j));
+    fit.depth_sigma_mm.push_back(std::sqrt(std::max(0.0, cov(j, j))));
+  }
+  fit.distance_mm = p(m);
+  fit.distance_sigma_mm = std::sqrt(std::max(0.0, cov(m, m)));
+  return fit;
+}
+
+}  // namespace
+
+Result<LampEstimate> EstimateLamp(const SphereCalibration& cal, int width, int height,
+                                  const CameraModel& camera, const SphereField& field) {
+  const auto& spheres = cal.spheres;
+  if (spheres.size() < 2)
+    return MakeError(ErrorCode::kInvalidInput, "(spheres)",
+                     "the lamp's position needs two or more chrome spheres at different places in "
+                     "the field ({} given): one sphere sees the lamp's direction, not its distance",
+                     spheres.size());
+  if (field.field_height_mm <= 0)
+    return MakeError(ErrorCode::kInvalidInput, "(field)",
+                     "the lamp's position needs the field's height at the object (mm) to place "
+                     "the spheres");
+  if (camera.perspective())
+    return MakeError(ErrorCode::kInvalidInput, "(camera)",
+                     "the lamp's position places the spheres with the orthographic model only "
+                     "(a perspective camera would need every sphere's size in mm)");
+  if (field.depth_mm.size() > 1 && field.depth_mm.size() != spheres.size())
+    return MakeError(ErrorCode::kInvalidInput, "(spheres)",
+                     "{} sphere depths given for {} spheres (give one for all, or one per sphere)",
+                     field.depth_mm.size(), spheres.size());
+  for (size_t a = 0; a < spheres.size(); ++a)
+    for (size_t b = a + 1; b < spheres.size(); ++b)
+      if (std::hypot(spheres[a].cx - spheres[b].cx, spheres[a].cy - spheres[b].cy) <
+          spheres[a].r + spheres[b].r)
+        return MakeError(ErrorCode::kInvalidInput, "(spheres)",
+                         "spheres {} and {} overlap in the image ({:.1f}, {:.1f} and {:.1f}, "
+                         "{:.1f} px): the same sphere twice, or a circle wrong", a + 1, b + 1,
+                         spheres[a].cx, spheres[a].cy, spheres[b].cx, spheres[b].cy);
+  const double mm_per_px = field.field_height_mm / height;
+  std::vector<double> depths;
+  for (size_t j = 0; j < spheres.size(); ++j)
+    depths.push_back(field.depth_mm.empty()
+                         ? spheres[j].r * mm_per_px
+                         : field.depth_mm[field.depth_mm.size() == 1 ? 0 : j]);
+  LampEstimate est = EstimateAtDepths(cal, width, height, field, depths);
+  est.depth_assumed = field.depth_mm.empty();
+  if (!field.fit_depths) return est;
+  if (!est.near)
+    return MakeError(ErrorCode::kInvalidInput, "(spheres)",
+                     "the spheres' depths are fitted from a near lamp's parallax; this lamp is "
+                     "far ({} of {} images give a distance): its rays are parallel whatever "
+                     "the depths", est.determined, cal.highlights.size());
+  RIG_ASSIGN_OR_RETURN(DepthFit fit, FitDepths(cal, width, height, field, depths, est));
+  LampEstimate fitted = EstimateAtDepths(cal, width, height, field, fit.depth_mm);
+  fitted.depth_assumed = false;
+  fitted.depth_fitted = true;
+  fitted.depth_sigma_mm = fit.depth_sigma_mm;
+  fitted.fit_distance_mm = fit.distance_mm;
+  fitted.fit_distance_sigma_mm = fit.distance_sigma_mm;
+  fitted.fit_rms = fit.rms;
+  fitted.depth_start_mm = depths;
+  return fitted;
+}
+
 Result<SphereCalibration> CalibrateFromSpheres(const LightStack& stack,
                                                const std::vector<SphereCircle>& spheres,
                                                const CameraModel& camera,
                                                const HighlightOptions& options,
-                                               double max_disagreement_deg) {
+                                               double max_disagreement_deg,
+                                               const SphereField& field) {
   SphereCalibration cal;
   cal.spheres = spheres;
   for (size_t k = 0; k < stack.size(); ++k) {
@@ -455,15 +673,35 @@ Result<SphereCalibration> CalibrateFromSpheres(const LightStack& stack,
     for (size_t a = 0; a < hs.size(); ++a)
       for (size_t b = a + 1; b < hs.size(); ++b)
         worst = std::max(worst, AngleDeg(hs[a].direction, hs[b].direction));
-    if (worst > max_disagreement_deg)
-      return MakeError(ErrorCode::kInvalidInput, stack.names[k],
-                       "the spheres disagree on the light direction by {:.2f} deg (at most {:.2f}; "
-                       "a sphere misplaced, or a lamp so near that --max-disagreement must allow "
-                       "its parallax)", worst, max_disagreement_deg);
     cal.directions.push_back(Normalize(sum));
     cal.highlights.push_back(std::move(hs));
     cal.sphere_disagreement_deg.push_back(worst);
   }
+  if (field.field_height_mm > 0) {
+    RIG_ASSIGN_OR_RETURN(LampEstimate lamp,
+                         EstimateLamp(cal, stack.width, stack.height, camera, field));
+    cal.lamp = std::move(lamp);
+  }
+  if (cal.lamp && cal.lamp->near) {
+    // Each sphere sees a near lamp from its own place: what must agree is every sphere's ray
+    // with the lamp the rays triangulate, and the direction is the one from the arm's centre.
+    for (size_t k = 0; k < stack.size(); ++k)
+      if (cal.lamp->residual_deg[k] > max_disagreement_deg)
+        return MakeError(ErrorCode::kInvalidInput, stack.names[k],
+                         "a sphere's ray misses the lamp the spheres triangulate ({:.0f} mm from "
+                         "the arm's centre) by {:.2f} deg (at most {:.2f}): a sphere misplaced, "
+                         "or its depth wrong", cal.lamp->distance_mm, cal.lamp->residual_deg[k],
+                         max_disagreement_deg);
+    cal.directions = cal.lamp->directions;
+    return cal;
+  }
+  for (size_t k = 0; k < stack.size(); ++k)
+    if (cal.sphere_disagreement_deg[k] > max_disagreement_deg)
+      return MakeError(ErrorCode::kInvalidInput, stack.names[k],
+                       "the spheres disagree on the light direction by {:.2f} deg (at most {:.2f}; "
+                       "a sphere misplaced, or a lamp so near that it shows parallax: give the "
+                       "field's height to triangulate it, or a --max-disagreement that allows it)",
+                       cal.sphere_disagreement_deg[k], max_disagreement_deg);
   return cal;
 }
 

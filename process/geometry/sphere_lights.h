@@ -17,6 +17,7 @@
 
 #include "config/config.h"
 #include "config/result.h"
+#include "process/geometry/lamp_position.h"
 #include "process/geometry/light_stack.h"
 
 namespace rig {
@@ -27,6 +28,7 @@ struct SphereCircle {
 
 struct CameraModel {
   double focal_px = 0;  // 0: orthographic
+  std::string source;   // where the model came from (said in Describe), e.g. "--focal-mm"
   bool perspective() const { return focal_px > 0; }
   std::string Describe() const;
 };
@@ -72,21 +74,78 @@ cv::Mat MedianGrey(const LightStack& stack);
 Result<Highlight> LocateHighlight(const LightStack& stack, size_t k, const SphereCircle& sphere,
                                   const CameraModel& camera, const HighlightOptions& options = {});
 
+// Where the spheres are in the object frame of lamp_position.h (mm, origin at the arm's centre
+// of rotation, at the image centre), for the lamp's position; orthographic camera only.
+struct SphereField {
+  double field_height_mm = 0;  // the image's height at the object; 0: no lamp position
+  // Per sphere (in the order given), its centre's z: mm towards the camera from the plane
+  // z = 0 through the arm's centre. Empty: every sphere rests on that plane (its centre one
+  // radius in front of it, z = r); one value: every sphere's.
+  std::vector<double> depth_mm;
+  // The highlight's position accuracy in pixels: a sphere of radius r px then gives the
+  // direction to 2 * edge_px / r rad (its normal to edge_px / r). 0.1 px: the circle-finding
+  // accuracy process_lights_test asserts, and it matches the sessions' largest direction error
+  // (0.35 deg on a 33.6 px sphere, docs/lights.md).
+  double edge_px = 0.1;
+  // Fit every sphere's depth (from `depth_mm` or the resting default) together with the lamp's
+  // one distance from the arm's centre over all images: a near lamp on an arm keeps its
+  // distance, and grazing lamps see a depth error as a shift across their rays. Assumes the
+  // arm's centre at the image centre.
+  bool fit_depths = false;
+  LampOptions lamp;
+};
+
+struct LampEstimate {
+  std::vector<LampFix> fixes;  // per image
+  std::vector<double> depth_mm;  // every sphere centre's z used
+  bool depth_assumed = true;     // resting on the plane (no depth given, none fitted)
+  // With SphereField::fit_depths: the depths' 1-sigma, where the fit started, and the fit's
+  // own distance (1-sigma) and rms residual (in units of the directions' assumed sigma).
+  bool depth_fitted = false;
+  std::vector<double> depth_sigma_mm, depth_start_mm;
+  double fit_distance_mm = 0, fit_distance_sigma_mm = 0, fit_rms = 0;
+  int determined = 0;            // images whose fix is determined
+  // Near: the lamp's distance is determined in at least half of the images; distance_mm is
+  // the median over those, median_miss_mm their median ray miss.
+  bool near = false;
+  double distance_mm = 0, median_miss_mm = 0;
+  double resolvable_mm = 0;  // the median of the fixes' resolvable_mm
+  // Near only, per image: the direction from the arm's centre to the lamp at distance_mm, and
+  // the largest angle between a sphere's ray and the direction from its highlight to that lamp.
+  std::vector<Vec3> directions;
+  std::vector<double> residual_deg;
+};
+
+struct SphereCalibration;
+
+// The lamp's position in every image from the highlights of two or more spheres (`cal`, as
+// CalibrateFromSpheres found them, its directions not needed). Errors (kInvalidInput): fewer
+// than two spheres, overlapping spheres, no field height, a perspective camera, a depth list
+// whose length is neither 1 nor the spheres'; depths to fit from a far lamp.
+Result<LampEstimate> EstimateLamp(const SphereCalibration& cal, int width, int height,
+                                  const CameraModel& camera, const SphereField& field);
+
 struct SphereCalibration {
   std::vector<SphereCircle> spheres;
-  // per image: the direction (the spheres' mean), and every sphere's highlight
+  // per image: the direction (the spheres' mean; a near lamp: from the arm's centre), and every
+  // sphere's highlight
   std::vector<Vec3> directions;
   std::vector<std::vector<Highlight>> highlights;  // [image][sphere]
   std::vector<double> sphere_disagreement_deg;     // per image: largest angle between spheres
+  std::optional<LampEstimate> lamp;                // with a field height and two or more spheres
 };
 
 // Every image's direction from every sphere. With two or more spheres, images whose spheres
-// disagree by more than `max_disagreement_deg` are an error naming the image.
+// disagree by more than `max_disagreement_deg` are an error naming the image. With
+// `field.field_height_mm` > 0 the lamp's position is estimated too (EstimateLamp, its errors
+// returned); when it is near, every direction is the one from the arm's centre and the check
+// is on what remains after the parallax: each sphere's ray against the lamp triangulated.
 Result<SphereCalibration> CalibrateFromSpheres(const LightStack& stack,
                                                const std::vector<SphereCircle>& spheres,
                                                const CameraModel& camera,
                                                const HighlightOptions& options = {},
-                                               double max_disagreement_deg = 3.0);
+                                               double max_disagreement_deg = 3.0,
+                                               const SphereField& field = {});
 
 double AngleDeg(const Vec3& a, const Vec3& b);
 

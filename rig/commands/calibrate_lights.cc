@@ -9,6 +9,7 @@
 #include "process/geometry/light_refit_loo.h"
 #include "process/geometry/photometric_stereo.h"
 #include "process/export/relight_files.h"
+#include "process/io/exif.h"
 #include "process/geometry/sphere_lights.h"
 #include "process/model/rti_fit.h"
 #include "rig/commands/command.h"
@@ -34,9 +35,12 @@ int RunCalibrateLights(int argc, char** argv) {
                "rig calibrate-lights"};
   std::string source, lp, images, out, log_level;
   std::vector<std::string> sphere_args;
+  std::vector<double> sphere_depth_mm;
+  double field_height_mm = 0;
   double focal_mm = 0, sensor_width_mm = 0, max_disagreement = 3.0, min_contrast = 8,
          max_blob = 0.03;
-  bool force = false, from_images = false, as_given = false;
+  bool force = false, from_images = false, as_given = false, fit_depths = false,
+       orthographic = false;
   std::string loo_report;
   int loo_every = 6, rounds = 3, threads = 2;
   app.add_option("source", source, "a session folder");
@@ -45,12 +49,25 @@ int RunCalibrateLights(int argc, char** argv) {
   app.add_option("--sphere", sphere_args, "a chrome sphere's circle CX,CY,R in pixels (repeat for "
                  "several; default: found automatically)");
   app.add_option("--focal-mm", focal_mm, "perspective camera: the lens's focal length (mm); "
-                 "default: orthographic")->check(CLI::PositiveNumber);
+                 "default: the first photograph's EXIF (FocalLength with FocalPlaneXResolution "
+                 "or FocalLengthIn35mmFilm), else orthographic")->check(CLI::PositiveNumber);
   app.add_option("--sensor-width-mm", sensor_width_mm, "the sensor's width (mm), with --focal-mm")
       ->check(CLI::PositiveNumber);
+  app.add_flag("--orthographic", orthographic, "the orthographic model whatever the EXIF says");
   app.add_option("--max-disagreement", max_disagreement,
-                 "largest angle (deg) two spheres may disagree on an image's light")
+                 "largest angle (deg) two spheres may disagree on an image's light (a near lamp "
+                 "whose position is estimated: a sphere's ray may miss the lamp)")
       ->check(CLI::PositiveNumber);
+  app.add_option("--field-height-mm", field_height_mm, "the image's height at the object (mm): "
+                 "with two or more spheres, the lamp's position and distance are estimated "
+                 "(default: a session's [light_frame] field_height_mm)")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--sphere-depth-mm", sphere_depth_mm, "a sphere centre's z (mm, towards the "
+                 "camera from the plane through the arm's centre), one for all or one per sphere "
+                 "in order; default: every sphere resting on that plane (z = its radius)");
+  app.add_flag("--fit-sphere-depths", fit_depths, "a near lamp on the arm: fit the spheres' depths "
+               "(from --sphere-depth-mm or the default) with the lamp's one distance from the "
+               "arm's centre over all images");
   app.add_option("--min-contrast", min_contrast, "a highlight's peak over the sphere's median")
       ->check(CLI::PositiveNumber);
   app.add_option("--max-blob", max_blob, "largest highlight blob, as a fraction of the sphere")
@@ -78,6 +95,10 @@ int RunCalibrateLights(int argc, char** argv) {
       std::fprintf(stderr, "rig calibrate-lights: --focal-mm and --sensor-width-mm go together\n");
       return 2;
     }
+    if (orthographic) {
+      std::fprintf(stderr, "rig calibrate-lights: --orthographic or --focal-mm, not both\n");
+      return 2;
+    }
   }
   std::vector<SphereCircle> spheres;
   for (const auto& s : sphere_args) {
@@ -98,7 +119,41 @@ int RunCalibrateLights(int argc, char** argv) {
     return 2;
   }
   const LightStack& stack = src->stack;
-  if (focal_mm > 0) camera.focal_px = focal_mm / sensor_width_mm * stack.width;
+  if (focal_mm > 0) {
+    camera.focal_px = focal_mm / sensor_width_mm * stack.width;
+    camera.source = fmt::format("from --focal-mm {} and --sensor-width-mm {}", focal_mm,
+                                sensor_width_mm);
+  } else if (orthographic) {
+    camera.source = "--orthographic (no EXIF read)";
+  } else if (!from_images) {
+    // No lens given: the photographs' EXIF, if they carry a focal length and a sensor width.
+    if (src->first_photo.empty()) {
+      camera.source = "no --focal-mm, and no photograph to read EXIF from";
+    } else {
+      auto lens = ReadExifLens(src->first_photo);
+      if (!lens.ok()) return ReportError("calibrate-lights", lens.error());
+      const ExifFocal f = FocalFromExif(*lens, stack.width, stack.height);
+      if (f.focal_mm > 0) {
+        camera.focal_px = f.focal_mm / f.sensor_width_mm * stack.width;
+        camera.source = fmt::format("from the EXIF of {}: {}", src->first_photo, f.how);
+      } else {
+        camera.source = fmt::format(
+            "no --focal-mm, and {} {}", src->first_photo,
+            !lens->has_exif ? "has no EXIF"
+            : lens->focal_mm > 0 ? "has an EXIF FocalLength but neither FocalPlaneXResolution "
+                                   "nor FocalLengthIn35mmFilm to give the sensor's width"
+                                 : "has no EXIF focal length");
+      }
+    }
+  }
+  const double session_field_mm =
+      src->session_config ? src->session_config->light_frame.field_height_mm : 0.0;
+  if ((!sphere_depth_mm.empty() || fit_depths) && field_height_mm <= 0 && session_field_mm <= 0) {
+    std::fprintf(stderr, "rig calibrate-lights: --sphere-depth-mm and --fit-sphere-depths place "
+                         "the spheres for the lamp's position, which needs --field-height-mm (or "
+                         "a session's [light_frame] field_height_mm)\n");
+    return 2;
+  }
   if (out.empty()) {
     if (src->kind != "session") {
       std::fprintf(stderr, "rig calibrate-lights: --out FILE.lp is required for --lp and --images\n");
@@ -180,8 +235,94 @@ int RunCalibrateLights(int argc, char** argv) {
   for (size_t i = 0; i < spheres.size(); ++i)
     std::printf("sphere %zu: centre (%.2f, %.2f) px, radius %.2f px\n", i + 1, spheres[i].cx,
                 spheres[i].cy, spheres[i].r);
-  auto cal = CalibrateFromSpheres(stack, spheres, camera, ho, max_disagreement);
+  // The lamp's position: asked for with --field-height-mm or --sphere-depth-mm (its errors
+  // are the user's), or tried when a session's config knows the field and the capture allows.
+  SphereField field;
+  field.depth_mm = sphere_depth_mm;
+  field.fit_depths = fit_depths;
+  if (field_height_mm > 0 || !sphere_depth_mm.empty() || fit_depths) {
+    field.field_height_mm = field_height_mm > 0 ? field_height_mm : session_field_mm;
+  } else if (session_field_mm > 0) {
+    if (spheres.size() < 2)
+      std::printf("lamp position: not estimated (one sphere sees the lamp's direction, not its "
+                  "distance; two at different places in the field triangulate it)\n");
+    else if (camera.perspective())
+      std::printf("lamp position: not estimated (the spheres are placed with the orthographic "
+                  "model only)\n");
+    else
+      field.field_height_mm = session_field_mm;
+  }
+  auto cal = CalibrateFromSpheres(stack, spheres, camera, ho, max_disagreement, field);
   if (!cal.ok()) return ReportError("calibrate-lights", cal.error());
+  std::string lamp_toml, lamp_csv;
+  if (cal->lamp) {
+    const LampEstimate& lamp = *cal->lamp;
+    std::string depths;
+    for (double z : lamp.depth_mm) depths += fmt::format("{}{:.1f}", depths.empty() ? "" : ", ", z);
+    std::printf("\nlamp position from %zu spheres (orthographic, field %.1f mm high, origin at the "
+                "arm's centre = the image centre; sphere centres at z = %s mm, %s):\n",
+                spheres.size(), field.field_height_mm, depths.c_str(),
+                lamp.depth_fitted    ? "fitted"
+                : lamp.depth_assumed ? "assumed resting on the plane z = 0"
+                                     : "as given");
+    if (lamp.depth_fitted) {
+      std::string fitted, start;
+      for (size_t j = 0; j < lamp.depth_mm.size(); ++j) {
+        fitted += fmt::format("{}{:.1f} +- {:.1f}", j ? ", " : "", lamp.depth_mm[j],
+                              lamp.depth_sigma_mm[j]);
+        start += fmt::format("{}{:.1f}", j ? ", " : "", lamp.depth_start_mm[j]);
+      }
+      std::printf("sphere depths fitted with the lamp's one distance over all images: z = %s mm "
+                  "(1-sigma at %.2f px of highlight; from %s mm); the fit's distance %.1f +- %.1f "
+                  "mm, rms %.2f of that sigma\n", fitted.c_str(), field.edge_px, start.c_str(),
+                  lamp.fit_distance_mm, lamp.fit_distance_sigma_mm, lamp.fit_rms);
+    }
+    std::printf("%-12s %8s %8s %8s %11s %8s %8s %9s\n", "image", "x_mm", "y_mm", "z_mm",
+                "distance_mm", "sigma_mm", "miss_mm", "parallax");
+    lamp_csv = "image,determined,x_mm,y_mm,z_mm,distance_mm,sigma_mm,miss_mm,parallax_deg\n";
+    for (size_t k = 0; k < stack.size(); ++k) {
+      const LampFix& f = lamp.fixes[k];
+      const std::string name = fs::path(stack.names[k]).filename().string();
+      if (f.determined)
+        std::printf("%-12s %8.1f %8.1f %8.1f %11.1f %8.1f %8.3f %8.2f\n", name.c_str(),
+                    f.position_mm[0], f.position_mm[1], f.position_mm[2], f.distance_mm,
+                    f.sigma_mm, f.miss_mm, f.parallax_deg);
+      else
+        std::printf("%-12s no distance: %s\n", name.c_str(), f.note.c_str());
+      lamp_csv += fmt::format("{},{},{:.3f},{:.3f},{:.3f},{:.3f},{:.3f},{:.4f},{:.4f}\n", name,
+                              f.determined ? 1 : 0, f.position_mm[0], f.position_mm[1],
+                              f.position_mm[2], f.distance_mm, f.sigma_mm, f.miss_mm,
+                              f.parallax_deg);
+    }
+    if (lamp.near) {
+      double parallax = 0, residual = 0;
+      for (size_t k = 0; k < stack.size(); ++k) {
+        parallax = std::max(parallax, cal->sphere_disagreement_deg[k]);
+        residual = std::max(residual, lamp.residual_deg[k]);
+      }
+      std::printf("lamp: near, %.1f mm from the arm's centre (median of the %d of %zu images that "
+                  "give a distance), median ray miss %.3f mm\n", lamp.distance_mm,
+                  lamp.determined, stack.size(), lamp.median_miss_mm);
+      std::printf("directions: from the arm's centre to the lamp at that distance (the spheres "
+                  "see it up to %.2f deg apart; their rays miss it by at most %.2f deg)\n",
+                  parallax, residual);
+      if (lamp.depth_assumed)
+        std::printf("(the spheres' depths are assumed: where they do not rest on the plane "
+                    "through the arm's centre, give --sphere-depth-mm, or --fit-sphere-depths for "
+                    "a lamp on the arm; docs/lights.md measures what a wrong depth costs)\n");
+      lamp_toml = fmt::format("lamp_distance_mm = {:.1f}  # median of {} of {} images, {} "
+                              "spheres, ray miss {:.3f} mm\nfield_height_mm = {:.3f}\n",
+                              lamp.distance_mm, lamp.determined, stack.size(), spheres.size(),
+                              lamp.median_miss_mm, field.field_height_mm);
+    } else {
+      std::printf("lamp: far (%d of %zu images give a distance; these spheres resolve one up to "
+                  "~%.0f mm): directions as for a far lamp, the spheres' mean\n",
+                  lamp.determined, stack.size(), lamp.resolvable_mm);
+      lamp_toml = fmt::format("lamp_distance_mm = 0  # far: beyond the ~{:.0f} mm {} spheres "
+                              "resolve\n", lamp.resolvable_mm, spheres.size());
+    }
+    std::printf("suggested: [light_frame] %s", lamp_toml.c_str());
+  }
 
   // The .lp: image paths relative to its folder.
   const fs::path out_dir = fs::absolute(out, ec).parent_path();
@@ -229,13 +370,17 @@ int RunCalibrateLights(int argc, char** argv) {
               "[light_frame] cannot hold a tilt\n", fit->tilt_deg, fit->rms_with_tilt_deg);
   const std::string toml = fmt::format(
       "# fitted by rig calibrate-lights from {} chrome sphere(s), {} poses; rms {:.3f} deg\n"
-      "[light_frame]\nh_offset_deg = {:.4f}\nv_offset_deg = {:.4f}\nh_sign = {}\nv_sign = {}\n",
-      spheres.size(), stack.size(), fit->rms_deg, f.h_offset_deg, f.v_offset_deg, f.h_sign, f.v_sign);
+      "[light_frame]\nh_offset_deg = {:.4f}\nv_offset_deg = {:.4f}\nh_sign = {}\nv_sign = {}\n{}",
+      spheres.size(), stack.size(), fit->rms_deg, f.h_offset_deg, f.v_offset_deg, f.h_sign,
+      f.v_sign, lamp_toml);
   std::printf("\n%s", toml.c_str());
   std::printf("(the session ran with h_offset_deg = %.4f, v_offset_deg = %.4f, h_sign = %d, "
-              "v_sign = %d)\n", was.h_offset_deg, was.v_offset_deg, was.h_sign, was.v_sign);
-  for (const auto& [name, text] : {std::pair<std::string, std::string>{"light_frame.toml", toml},
-                                   {"lights.csv", csv}}) {
+              "v_sign = %d, lamp_distance_mm = %.1f)\n", was.h_offset_deg, was.v_offset_deg,
+              was.h_sign, was.v_sign, was.lamp_distance_mm);
+  std::vector<std::pair<std::string, std::string>> files = {{"light_frame.toml", toml},
+                                                            {"lights.csv", csv}};
+  if (!lamp_csv.empty()) files.emplace_back("lamp.csv", lamp_csv);
+  for (const auto& [name, text] : files) {
     const fs::path p = out_dir / name;
     if (fs::exists(p, ec) && !force) {
       std::fprintf(stderr, "rig calibrate-lights: %s exists (give --force to replace it)\n",

@@ -42,7 +42,23 @@ Result<LightSource> FromSession(const std::string& dir) {
   }
   RIG_ASSIGN_OR_RETURN(LightStack stack,
                        LoadRadianceStack(paths, names, h, v, config.light_frame));
-  LightSource s{"session", dir, std::move(stack), config};
+  LightSource s{"session", dir, std::move(stack), config, {}};
+  // frames/<pose>/<i>_<exposure>.jpg: the camera's originals, their EXIF as the body wrote it.
+  std::vector<fs::path> poses;
+  for (const auto& e : fs::directory_iterator(fs::path(dir) / "frames", ec))
+    if (e.is_directory()) poses.push_back(e.path());
+  std::sort(poses.begin(), poses.end());
+  for (const auto& p : poses) {
+    std::vector<fs::path> jpegs;
+    for (const auto& e : fs::directory_iterator(p, ec)) {
+      std::string ext = e.path().extension().string();
+      std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
+      if (ext == ".jpg" || ext == ".jpeg") jpegs.push_back(e.path());
+    }
+    if (jpegs.empty()) continue;
+    s.first_photo = std::min_element(jpegs.begin(), jpegs.end())->string();
+    break;
+  }
   return s;
 }
 
@@ -85,7 +101,7 @@ Result<LightSource> FromImages(const std::string& dir, int downsample) {
     s.linear.push_back(lin);
     s.clipped.push_back(clip);
   }
-  return LightSource{"images", dir, std::move(s), std::nullopt};
+  return LightSource{"images", dir, std::move(s), std::nullopt, files[0].string()};
 }
 
 // A model has no photographs: it is rendered at 37 directions over the upper hemisphere
@@ -108,7 +124,7 @@ Result<LightSource> FromModel(const std::string& path) {
     s.directions.push_back(d);
     s.names.push_back(fmt::format("{} at ({:.3f}, {:.3f}, {:.3f})", path, d[0], d[1], d[2]));
   }
-  return LightSource{"model", path, std::move(s), std::nullopt};
+  return LightSource{"model", path, std::move(s), std::nullopt, {}};
 }
 
 }  // namespace
@@ -121,7 +137,8 @@ Result<LightSource> LoadLightSource(const std::string& positional, const std::st
                      "give exactly one of SESSION|MODEL, --lp FILE.lp or --images DIR");
   if (!lp.empty()) {
     RIG_ASSIGN_OR_RETURN(LightStack stack, LoadLpStack(lp, downsample));
-    return LightSource{"lp", lp, std::move(stack), std::nullopt};
+    std::string first = stack.names.empty() ? std::string() : stack.names[0];
+    return LightSource{"lp", lp, std::move(stack), std::nullopt, std::move(first)};
   }
   if (!images.empty()) return FromImages(images, downsample);
   std::error_code ec;

@@ -17,6 +17,9 @@ struct LightSource {
   std::string path;        // the session folder, the .lp, the image folder or the model
   LightStack stack;
   std::optional<Config> session_config;  // a session's session.toml
+  // A photograph of the capture, for its EXIF: the first image; a session's first JPEG frame;
+  // empty for a model or a session without one.
+  std::string first_photo;
 };
 
 // `positional`: a session folder or a model; `lp`: an .lp file; `images`: a folder of images

@@ -213,6 +213,281 @@ TEST(SphereLights, TwoSpheresAgreeUnderAFarLampAndDisagreementIsRefused) {
   EXPECT_THAT(bad.error().ToString(), HasSubstr("_v"));  // names the image
 }
 
+// The sphere centres' depths (mm) of the simulator's truth, in the spheres' image order.
+std::vector<double> TrueDepthsMm(const SimScene& scene, const std::vector<SphereCircle>& found) {
+  std::vector<double> out;
+  for (const auto& f : found)
+    for (const auto& t : scene.CalibrationSpheres())
+      if (t.material == SimMaterialId::kChrome && std::hypot(t.cx_px - f.cx, t.cy_px - f.cy) < 2)
+        out.push_back(t.center[2] * scene.mm_per_unit());
+  return out;
+}
+
+TEST(LampPosition, TwoSpheresPlaceANearLampWithinTheirResolution) {
+  // The simulator's exact near lamp, 300 mm from the arm's centre over a 100 mm field, the arm
+  // off by h +2.5, v -1.5 deg; two chrome spheres (33.6 and 26.4 px, 14 and 11 mm), their
+  // depths given from the truth.
+  SimConfig sim = CalibrationScene(2, "matte");
+  sim.lamp_distance_mm = 300;
+  LightFrameConfig frame;
+  frame.h_offset_deg = 2.5;
+  frame.v_offset_deg = -1.5;
+  Capture c = Render(sim, frame);
+  auto found = DetectChromeSpheres(c.stack);
+  ASSERT_TRUE(found.ok()) << found.error().ToString();
+  ASSERT_EQ(found->size(), 2u);
+  // As a far lamp, the spheres see it from two places up to 19 deg apart: refused.
+  auto far = CalibrateFromSpheres(c.stack, *found, CameraModel{});
+  ASSERT_FALSE(far.ok());
+  EXPECT_THAT(far.error().ToString(), HasSubstr("disagree"));
+  SphereField field;
+  field.field_height_mm = sim.field_height_mm;
+  field.depth_mm = TrueDepthsMm(c.scene, *found);
+  ASSERT_EQ(field.depth_mm.size(), 2u);
+  auto cal = CalibrateFromSpheres(c.stack, *found, CameraModel{}, {}, 3.0, field);
+  ASSERT_TRUE(cal.ok()) << cal.error().ToString();
+  ASSERT_TRUE(cal->lamp.has_value());
+  const LampEstimate& lamp = *cal->lamp;
+  ASSERT_TRUE(lamp.near);
+  // Per image: the fix against the lamp's true place, and its own 1-sigma.
+  std::vector<double> pos_err, sigma;
+  double worst_residual = 0;
+  for (size_t k = 0; k < c.truth.size(); ++k) {
+    worst_residual = std::max(worst_residual, lamp.residual_deg[k]);
+    const LampFix& f = lamp.fixes[k];
+    if (!f.determined) continue;
+    double e2 = 0;
+    for (int i = 0; i < 3; ++i) e2 += std::pow(f.position_mm[i] - 300 * c.truth[k][i], 2);
+    pos_err.push_back(std::sqrt(e2));
+    sigma.push_back(f.sigma_mm);
+  }
+  std::sort(pos_err.begin(), pos_err.end());
+  std::sort(sigma.begin(), sigma.end());
+  const double median_sigma = sigma[sigma.size() / 2];
+  double sum = 0, worst = 0, sum_mean = 0;
+  for (size_t k = 0; k < c.truth.size(); ++k) {
+    const double e = AngleDeg(cal->directions[k], c.truth[k]);
+    sum += e;
+    worst = std::max(worst, e);
+    Vec3 m = {0, 0, 0};
+    for (const auto& h : cal->highlights[k])
+      for (int i = 0; i < 3; ++i) m[i] += h.direction[i];
+    sum_mean += AngleDeg(m, c.truth[k]);
+  }
+  const size_t n = c.truth.size();
+  std::printf("near lamp 300 mm, depths given: %d of %zu images determined, median distance "
+              "%.2f mm, median ray miss %.3f mm, median position error %.2f mm (max %.2f), "
+              "median 1-sigma %.2f mm, resolvable to %.0f mm\n", lamp.determined, n,
+              lamp.distance_mm, lamp.median_miss_mm, pos_err[pos_err.size() / 2], pos_err.back(),
+              median_sigma, lamp.resolvable_mm);
+  std::printf("directions from the arm's centre vs truth: mean %.3f deg, max %.3f deg (the "
+              "spheres' mean direction: mean %.3f deg); largest ray residual %.3f deg\n",
+              sum / n, worst, sum_mean / n, worst_residual);
+  // The tolerance is the spheres' own resolution: a tenth of a pixel of highlight on the
+  // smaller sphere (26.4 px) is 0.43 deg of direction; over the two spheres' ~100 mm baseline
+  // that is the 1-sigma the fixes report (median_sigma, ~2-3 % of 300 mm).
+  EXPECT_GE(2 * lamp.determined, static_cast<int>(n));
+  EXPECT_NEAR(lamp.distance_mm, 300, median_sigma);
+  EXPECT_LT(median_sigma, 0.05 * 300);
+  EXPECT_LT(sum / n, 0.5);
+  EXPECT_LT(worst, 0.5);
+  EXPECT_LT(worst_residual, 1.0);
+  auto fit = FitLightFrame(c.stack.h_deg, c.stack.v_deg, cal->directions);
+  ASSERT_TRUE(fit.ok());
+  std::printf("fitted light frame: h_offset %.3f (truth 2.5), v_offset %.3f (truth -1.5)\n",
+              fit->frame.h_offset_deg, fit->frame.v_offset_deg);
+  EXPECT_NEAR(fit->frame.h_offset_deg, 2.5, 0.2);
+  EXPECT_NEAR(fit->frame.v_offset_deg, -1.5, 0.2);
+
+  // The default assumption (every sphere resting on the plane through the arm's centre) where
+  // the simulator's spheres float 15 and 35 mm behind it: the distance it gives, printed.
+  SphereField resting;
+  resting.field_height_mm = sim.field_height_mm;
+  auto assumed = CalibrateFromSpheres(c.stack, *found, CameraModel{}, {}, 3.0, resting);
+  ASSERT_TRUE(assumed.ok()) << assumed.error().ToString();
+  std::printf("depths assumed (resting on the plane, z = r: %.1f, %.1f mm; truth %.1f, %.1f): "
+              "near %d, median distance %.2f mm, median ray miss %.3f mm\n",
+              assumed->lamp->depth_mm[0], assumed->lamp->depth_mm[1], field.depth_mm[0],
+              field.depth_mm[1], assumed->lamp->near, assumed->lamp->distance_mm,
+              assumed->lamp->median_miss_mm);
+}
+
+TEST(LampPosition, TheSpheresDepthsFittedFromTheArmKeepingTheLampsDistance) {
+  // The depths not known: fitted with the lamp's one distance over all 40 images, from the
+  // resting default (11 and 14 mm; truth -35 and -15 mm).
+  SimConfig sim = CalibrationScene(2, "matte");
+  sim.lamp_distance_mm = 300;
+  LightFrameConfig frame;
+  frame.h_offset_deg = 2.5;
+  frame.v_offset_deg = -1.5;
+  Capture c = Render(sim, frame);
+  auto found = DetectChromeSpheres(c.stack);
+  ASSERT_TRUE(found.ok()) << found.error().ToString();
+  ASSERT_EQ(found->size(), 2u);
+  const auto truth = TrueDepthsMm(c.scene, *found);
+  SphereField field;
+  field.field_height_mm = sim.field_height_mm;
+  field.fit_depths = true;
+  auto cal = CalibrateFromSpheres(c.stack, *found, CameraModel{}, {}, 3.0, field);
+  ASSERT_TRUE(cal.ok()) << cal.error().ToString();
+  const LampEstimate& lamp = *cal->lamp;
+  ASSERT_TRUE(lamp.depth_fitted);
+  double sum = 0, worst = 0;
+  for (size_t k = 0; k < c.truth.size(); ++k) {
+    const double e = AngleDeg(cal->directions[k], c.truth[k]);
+    sum += e;
+    worst = std::max(worst, e);
+  }
+  std::printf("depths fitted: %.2f +- %.2f, %.2f +- %.2f mm (truth %.1f, %.1f; start %.1f, %.1f); "
+              "fit's distance %.2f +- %.2f mm, rms %.2f; median distance %.2f mm, median miss "
+              "%.3f mm; directions mean %.3f, max %.3f deg\n", lamp.depth_mm[0],
+              lamp.depth_sigma_mm[0], lamp.depth_mm[1], lamp.depth_sigma_mm[1], truth[0], truth[1],
+              lamp.depth_start_mm[0], lamp.depth_start_mm[1], lamp.fit_distance_mm,
+              lamp.fit_distance_sigma_mm, lamp.fit_rms, lamp.distance_mm, lamp.median_miss_mm,
+              sum / c.truth.size(), worst);
+  // Within the fit's 1-sigma (a tenth of a pixel of highlight on every ray, not averaged down
+  // over the images: ~10 mm here), and a fifth of the start's error at most (46 and 29 mm). The
+  // depths matter at the scale of a few mm: a depth error d shifts a grazing lamp by d, ~0.2 deg
+  // per mm at 300 mm.
+  for (int j = 0; j < 2; ++j) {
+    EXPECT_NEAR(lamp.depth_mm[j], truth[j], lamp.depth_sigma_mm[j]) << j;
+    EXPECT_LT(std::abs(lamp.depth_mm[j] - truth[j]),
+              0.2 * std::abs(lamp.depth_start_mm[j] - truth[j])) << j;
+  }
+  EXPECT_NEAR(lamp.fit_distance_mm, 300, lamp.fit_distance_sigma_mm);
+  // The directions: half a degree on average, a degree at worst (0.2 deg with the true depths).
+  EXPECT_LT(sum / c.truth.size(), 0.5);
+  EXPECT_LT(worst, 1.0);
+  // A far lamp has no parallax to fit depths from: said so.
+  Capture f = Render(CalibrationScene(2, "matte"), {});
+  auto far = CalibrateFromSpheres(f.stack, *found, CameraModel{}, {}, 3.0, field);
+  ASSERT_FALSE(far.ok());
+  EXPECT_THAT(far.error().ToString(), HasSubstr("far"));
+}
+
+TEST(LampPosition, TheDepthFitIsExactOnExactHighlights) {
+  // Highlights computed from the geometry (the point whose mirror sends +z to the lamp), no
+  // image: the fit itself must return the depths and the distance, from 25 mm away.
+  const int width = 320, height = 240;
+  const double mm_per_px = 100.0 / height;
+  SphereCalibration cal;
+  cal.spheres = {{46.0, 38.4, 33.6}, {289.6, 28.8, 26.4}};
+  const std::vector<double> depth = {-15, -35};
+  for (int h = 0; h <= 90; h += 10)
+    for (int v = 0; v <= 30; v += 10) {
+      const Vec3 l = LightDirection(h, v);
+      const Vec3 lamp = {300 * l[0], 300 * l[1], 300 * l[2]};
+      std::vector<Highlight> hs;
+      for (size_t j = 0; j < 2; ++j) {
+        const SphereCircle& c = cal.spheres[j];
+        const Vec3 centre = {(c.cx - width / 2.0) * mm_per_px, (height / 2.0 - c.cy) * mm_per_px,
+                             depth[j]};
+        const double r = c.r * mm_per_px;
+        Vec3 n = {0, 0, 1}, d{};
+        for (int it = 0; it < 200; ++it) {
+          const Vec3 p = {centre[0] + r * n[0], centre[1] + r * n[1], centre[2] + r * n[2]};
+          Vec3 to = {lamp[0] - p[0], lamp[1] - p[1], lamp[2] - p[2]};
+          const double tn = std::sqrt(to[0] * to[0] + to[1] * to[1] + to[2] * to[2]);
+          d = {to[0] / tn, to[1] / tn, to[2] / tn};
+          Vec3 b = {d[0], d[1], d[2] + 1};
+          const double bn = std::sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+          n = {b[0] / bn, b[1] / bn, b[2] / bn};
+        }
+        Highlight hl;
+        hl.normal = n;
+        hl.direction = d;
+        hs.push_back(hl);
+      }
+      cal.highlights.push_back(hs);
+    }
+  SphereField field;
+  field.field_height_mm = 100;
+  field.depth_mm = {10, -10};
+  field.fit_depths = true;
+  auto est = EstimateLamp(cal, width, height, CameraModel{}, field);
+  ASSERT_TRUE(est.ok()) << est.error().ToString();
+  EXPECT_NEAR(est->depth_mm[0], -15, 1e-3);
+  EXPECT_NEAR(est->depth_mm[1], -35, 1e-3);
+  EXPECT_NEAR(est->fit_distance_mm, 300, 1e-3);
+  EXPECT_NEAR(est->distance_mm, 300, 1e-3);
+}
+
+TEST(LampPosition, AFarLampIsReportedFarNeverAsADistance) {
+  Capture c = Render(CalibrationScene(2, "matte"), {});
+  auto found = DetectChromeSpheres(c.stack);
+  ASSERT_TRUE(found.ok()) << found.error().ToString();
+  ASSERT_EQ(found->size(), 2u);
+  SphereField field;
+  field.field_height_mm = 100;
+  field.depth_mm = TrueDepthsMm(c.scene, *found);
+  auto cal = CalibrateFromSpheres(c.stack, *found, CameraModel{}, {}, 3.0, field);
+  ASSERT_TRUE(cal.ok()) << cal.error().ToString();
+  ASSERT_TRUE(cal->lamp.has_value());
+  std::printf("far lamp: %d of %zu images determined; resolvable to %.0f mm; first note: %s\n",
+              cal->lamp->determined, c.truth.size(), cal->lamp->resolvable_mm,
+              cal->lamp->fixes[0].note.c_str());
+  EXPECT_FALSE(cal->lamp->near);
+  EXPECT_EQ(cal->lamp->determined, 0);
+  EXPECT_EQ(cal->lamp->distance_mm, 0);
+  EXPECT_GT(cal->lamp->resolvable_mm, 300);  // a 300 mm lamp is within what they resolve
+  // The directions stay the spheres' mean, as without the field.
+  auto plain = CalibrateFromSpheres(c.stack, *found, CameraModel{});
+  ASSERT_TRUE(plain.ok());
+  for (size_t k = 0; k < c.truth.size(); ++k)
+    EXPECT_LT(AngleDeg(cal->directions[k], plain->directions[k]), 1e-9);
+}
+
+TEST(LampPosition, OneSphereAndOverlappingSpheresAreClearErrors) {
+  SimConfig sim = CalibrationScene(1, "matte");
+  sim.lamp_distance_mm = 300;
+  Capture c = Render(sim, {});
+  auto found = DetectChromeSpheres(c.stack);
+  ASSERT_TRUE(found.ok()) << found.error().ToString();
+  ASSERT_EQ(found->size(), 1u);
+  SphereField field;
+  field.field_height_mm = 100;
+  auto one = CalibrateFromSpheres(c.stack, *found, CameraModel{}, {}, 3.0, field);
+  ASSERT_FALSE(one.ok());
+  EXPECT_EQ(one.error().code, ErrorCode::kInvalidInput);
+  EXPECT_THAT(one.error().ToString(), HasSubstr("two or more chrome spheres"));
+  auto twice = *found;
+  twice.push_back(twice[0]);
+  twice[1].cx += 1;
+  auto overlap = CalibrateFromSpheres(c.stack, twice, CameraModel{}, {}, 30.0, field);
+  ASSERT_FALSE(overlap.ok());
+  EXPECT_THAT(overlap.error().ToString(), HasSubstr("overlap"));
+}
+
+TEST(LampPosition, RaysCrossingParallelAndDiverging) {
+  // Two rays through (10, 20, 300) from (-50, 0, 0) and (50, 5, -10): the point, exactly.
+  const Vec3 lamp = {10, 20, 300};
+  auto ray = [&](const Vec3& o) {
+    Vec3 d = {lamp[0] - o[0], lamp[1] - o[1], lamp[2] - o[2]};
+    const double n = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    return LampRay{o, {d[0] / n, d[1] / n, d[2] / n}, 0.005};
+  };
+  LampFix x = TriangulateRays({ray({-50, 0, 0}), ray({50, 5, -10})});
+  ASSERT_TRUE(x.determined) << x.note;
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(x.position_mm[i], lamp[i], 1e-6);
+  EXPECT_LT(x.miss_mm, 1e-6);
+  EXPECT_GT(x.sigma_mm, 0);
+  // Its distance known, the direction from the arm's centre comes back from the rays alone.
+  std::vector<double> res;
+  const double d = std::sqrt(10 * 10 + 20 * 20 + 300 * 300);
+  const Vec3 u = LampDirectionAtDistance({ray({-50, 0, 0}), ray({50, 5, -10})}, d, {0, 0, 1}, &res);
+  EXPECT_LT(AngleDeg(u, lamp), 1e-6);
+  EXPECT_LT(res[0], 1e-6);
+  // Parallel rays: no point.
+  LampFix p = TriangulateRays({{{-50, 0, 0}, {0, 0, 1}, 0.005}, {{50, 0, 0}, {0, 0, 1}, 0.005}});
+  EXPECT_FALSE(p.determined);
+  EXPECT_THAT(p.note, HasSubstr("parallel"));
+  // Diverging rays: the nearest point lies behind the spheres.
+  const double a = 0.01;
+  LampFix v = TriangulateRays({{{-50, 0, 0}, {-a, 0, 1}, 0.005}, {{50, 0, 0}, {a, 0, 1}, 0.005}});
+  EXPECT_FALSE(v.determined);
+  EXPECT_THAT(v.note, HasSubstr("diverge"));
+}
+
 TEST(SphereLights, NoSphereInTheSceneIsAClearError) {
   SimConfig sim;
   sim.scene = "matte";
