@@ -14,7 +14,7 @@
 namespace rig {
 namespace {
 
-constexpr double kDeg = 180.0 / std::numbers::pi;
+constexpr double kDegPerRad = 180.0 / std::numbers::pi;
 
 Eigen::Vector3d E(const Vec3& v) { return {v[0], v[1], v[2]}; }
 Vec3 V(const Eigen::Vector3d& v) { return {v(0), v(1), v(2)}; }
@@ -25,7 +25,7 @@ Eigen::Matrix3d Perp(const Eigen::Vector3d& d) {
 }
 
 double AngleBetweenDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return std::atan2(a.cross(b).norm(), a.dot(b)) * kDeg;
+  return std::atan2(a.cross(b).norm(), a.dot(b)) * kDegPerRad;
 }
 
 }  // namespace

@@ -461,7 +461,7 @@ std::vector<std::vector<LampRay>> SphereRays(const SphereCalibration& cal, int w
   return rays;
 }
 
-double MedianOf(std::vector<double> v) {
+double MedianOfValues(std::vector<double> v) {
   if (v.empty()) return 0.0;
   std::sort(v.begin(), v.end());
   const size_t m = v.size() / 2;
@@ -492,11 +492,11 @@ LampEstimate EstimateAtDepths(const SphereCalibration& cal, int width, int heigh
     }
     est.fixes.push_back(std::move(fix));
   }
-  est.resolvable_mm = MedianOf(resolvable);
+  est.resolvable_mm = MedianOfValues(resolvable);
   est.near = !rays.empty() && 2 * est.determined >= static_cast<int>(rays.size());
   if (!est.near) return est;
-  est.distance_mm = MedianOf(distances);
-  est.median_miss_mm = MedianOf(misses);
+  est.distance_mm = MedianOfValues(distances);
+  est.median_miss_mm = MedianOfValues(misses);
   for (size_t k = 0; k < rays.size(); ++k) {
     std::vector<double> res;
     est.directions.push_back(LampDirectionAtDistance(rays[k], est.distance_mm,

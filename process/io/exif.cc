@@ -40,6 +40,8 @@ double Number(ExifData* d, ExifTag tag) {
   }
 }
 
+ExifFocal FocalFromTags(const ExifLens& lens, int width_px, int height_px);
+
 }  // namespace
 
 Result<ExifLens> ReadExifLens(const std::string& path) {
@@ -66,6 +68,25 @@ Result<ExifLens> ReadExifLens(const std::string& path) {
 }
 
 ExifFocal FocalFromExif(const ExifLens& lens, int width_px, int height_px) {
+  ExifFocal f = FocalFromTags(lens, width_px, height_px);
+  // Tags are the file's word: a focal length or a sensor outside any camera's is no model.
+  constexpr double kMaxFocalMm = 5000, kMinSensorMm = 0.5, kMaxSensorMm = 500;
+  if (f.focal_mm > 0 && !(std::isfinite(f.focal_mm) && f.focal_mm <= kMaxFocalMm &&
+                          std::isfinite(f.sensor_width_mm) && f.sensor_width_mm >= kMinSensorMm &&
+                          f.sensor_width_mm <= kMaxSensorMm)) {
+    ExifFocal refused;
+    refused.how = fmt::format("EXIF gives focal length {:g} mm and sensor width {:g} mm, outside "
+                              "any camera's (focal up to {:g} mm, sensor {:g}-{:g} mm): not used",
+                              f.focal_mm, f.sensor_width_mm, kMaxFocalMm, kMinSensorMm,
+                              kMaxSensorMm);
+    return refused;
+  }
+  return f;
+}
+
+namespace {
+
+ExifFocal FocalFromTags(const ExifLens& lens, int width_px, int height_px) {
   ExifFocal f;
   if (!lens.has_exif) return f;
   if (lens.focal_mm > 0 && lens.x_res_per_mm > 0) {
@@ -94,5 +115,7 @@ ExifFocal FocalFromExif(const ExifLens& lens, int width_px, int height_px) {
   }
   return f;
 }
+
+}  // namespace
 
 }  // namespace rig

@@ -140,6 +140,7 @@ int RunCalibrateLights(int argc, char** argv) {
         camera.source = fmt::format(
             "no --focal-mm, and {} {}", src->first_photo,
             !lens->has_exif ? "has no EXIF"
+            : !f.how.empty() ? f.how
             : lens->focal_mm > 0 ? "has an EXIF FocalLength but neither FocalPlaneXResolution "
                                    "nor FocalLengthIn35mmFilm to give the sensor's width"
                                  : "has no EXIF focal length");

@@ -96,3 +96,32 @@ TEST(Exif, AJpegWithoutExifAndAMissingFile) {
 
 }  // namespace
 }  // namespace rig
+
+
+namespace rig {
+namespace {
+
+// Tags are untrusted: a focal length or sensor no camera has is refused, said so, never used.
+TEST(Exif, ValuesOutsideAnyCameraAreNotUsed) {
+  ExifLens lens;
+  lens.has_exif = true;
+  lens.focal_mm = 1e6;  // a kilometre-long lens
+  lens.x_res_per_mm = 100;
+  ExifFocal f = FocalFromExif(lens, 6000, 4000);
+  EXPECT_EQ(f.focal_mm, 0);
+  EXPECT_NE(f.how.find("outside any camera"), std::string::npos) << f.how;
+
+  lens.focal_mm = 50;
+  lens.x_res_per_mm = 1e9;  // a sensor 6 nm wide
+  f = FocalFromExif(lens, 6000, 4000);
+  EXPECT_EQ(f.focal_mm, 0);
+  EXPECT_NE(f.how.find("outside any camera"), std::string::npos) << f.how;
+
+  lens.x_res_per_mm = 250;  // 24 mm over 6000 px: a real camera, used
+  f = FocalFromExif(lens, 6000, 4000);
+  EXPECT_NEAR(f.focal_mm, 50, 1e-9);
+  EXPECT_NEAR(f.sensor_width_mm, 24, 1e-9);
+}
+
+}  // namespace
+}  // namespace rig
