@@ -136,6 +136,8 @@ Status FitSessionModel(const Session& session, const MapStore* maps) {
     log->info("lamp radiance from the reference patch: R={:.4g} G={:.4g} B={:.4g}",
               in.lamp_radiance_rgb[0], in.lamp_radiance_rgb[1], in.lamp_radiance_rgb[2]);
   }
+  // A near lamp ([light_frame] lamp_distance_mm > 0): per-pixel fall-off, per-tile directions.
+  in.near_lamp = NearLamp::FromLightFrame(config.light_frame, bands->height());
   RIG_ASSIGN_OR_RETURN(FitOptions options, FitOptionsFromConfig(config.process));
   options.threads = config.process.threads;
   ExrPixelType type = config.process.model_pixel_type == "float" ? ExrPixelType::kFloat : ExrPixelType::kHalf;
@@ -146,6 +148,10 @@ Status FitSessionModel(const Session& session, const MapStore* maps) {
   fs::path out = model_dir / "model.exr";
   RIG_ASSIGN_OR_RETURN(StreamFitOutput fit, FitModelFromBands(*bands, in, options, out.string(), type));
   log->info("model fitted from {}", source);
+  if (in.near_lamp.near()) {
+    log->info("near lamp {:.0f} mm: samples divided by their fall-off, {} px tiles ({} projectors)",
+              in.near_lamp.distance_mm, fit.near_tile_px, fit.projectors);
+  }
   // What each order costs and gives, beside the model, and its size on disk.
   const auto model_bytes = fs::file_size(out, ec);
   const double pixels = static_cast<double>(fit.width) * static_cast<double>(fit.height);
