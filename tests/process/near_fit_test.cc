@@ -183,6 +183,39 @@ TEST_F(NearFitTest, AFarLampTakesTheSharedProjectorBitForBit) {
   EXPECT_LT(plain.relative_rms, 0.05);  // the far lamp's own floor: the basis, not the lamp
 }
 
+TEST_F(NearFitTest, TilesOfALampFarAwayFitAsTheSharedProjectorWithMissingSamplesToo) {
+  // A lamp 10^9 mm away: every tile's directions and every fall-off equal the far lamp's to
+  // ~1e-7, so 7 px tiles (crossing the 32-row bands, clipped at the image's edges) must give
+  // the shared projector's coefficients, the solves for missing samples included.
+  const SimScene scene = MakeScene(0);
+  Capture c = Render(scene);
+  Capture holed;
+  holed.store = std::make_unique<MapStore>(ExrPixelType::kFloat, 40, size_t{1} << 30);
+  holed.keys = c.keys;
+  holed.in = c.in;
+  for (size_t i = 0; i < c.keys.size(); ++i) {
+    cv::Mat m = scene.Radiance(c.in.directions[i], {1, 1, 1});
+    for (int k = 0; k < 30; ++k) {
+      const int x = static_cast<int>((i * 37 + k * 53) % 160), y = static_cast<int>((i * 11 + k * 29) % 120);
+      m.at<cv::Vec3f>(y, x)[k % 3] = k % 2 ? std::nanf("") : -1.0f;
+    }
+    ASSERT_TRUE(holed.store->Add(c.keys[i], m, cv::Mat()).ok());
+  }
+  const Relit far = FitAndRelight(scene, holed, holed.in);
+  StreamFitInput in = holed.in;
+  in.near_lamp.distance_mm = 1e9;
+  in.near_lamp.mm_per_px = kFieldMm / 120;
+  in.near_tile_px = 7;
+  const Relit tiles = FitAndRelight(scene, holed, in);
+  EXPECT_EQ(tiles.tile_px, 7);
+  EXPECT_EQ(tiles.order, far.order);
+  ASSERT_FALSE(far.coefficients.empty());
+  ASSERT_EQ(far.coefficients.size(), tiles.coefficients.size());
+  const double scale = cv::norm(far.coefficients, cv::NORM_INF);
+  EXPECT_LT(cv::norm(far.coefficients, tiles.coefficients, cv::NORM_INF), 1e-4 * scale);
+  EXPECT_NEAR(tiles.relative_rms, far.relative_rms, 1e-5);
+}
+
 TEST_F(NearFitTest, PrintsTheTableOfDocsLights) {
   const SimScene far_scene = MakeScene(0);
   const Capture far_capture = Render(far_scene);
