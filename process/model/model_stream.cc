@@ -159,6 +159,24 @@ Result<std::vector<cv::Mat>> ReadPatches(MapBands& maps, const std::array<int, 4
   return crops;
 }
 
+void DivideByFalloff(const NearLamp& lamp, const std::vector<Vec3>& dirs, int x0, int y0,
+                     int width, int height, std::vector<cv::Mat>* bgr) {
+  if (!lamp.near()) return;
+  for (size_t i = 0; i < bgr->size() && i < dirs.size(); ++i) {
+    cv::Mat& m = (*bgr)[i];
+    for (int r = 0; r < m.rows; ++r) {
+      float* p = m.ptr<float>(r);
+      for (int x = 0; x < m.cols; ++x) {
+        const float f =
+            static_cast<float>(lamp.InverseFalloff(x0 + x, y0 + r, width, height, dirs[i]));
+        p[3 * x] *= f;
+        p[3 * x + 1] *= f;
+        p[3 * x + 2] *= f;
+      }
+    }
+  }
+}
+
 Result<StreamFitOutput> FitModelStreaming(const StreamFitInput& in, const FitOptions& o,
                                           const std::string& out_path, ExrPixelType type) {
   const size_t n = in.paths.size();
@@ -181,24 +199,6 @@ struct FittedBand {
   MissingStats missing;
   Status status;
 };
-
-// A near lamp: rows [y0, y0 + rows) of every map divided by each pixel's fall-off (the
-// caller's buffers, filled by MapBands::Read). Negative and non-finite samples stay so.
-void DivideByFalloff(const NearLamp& lamp, const std::vector<Vec3>& dirs, int y0, int width,
-                     int height, std::vector<cv::Mat>* bgr) {
-  for (size_t i = 0; i < bgr->size(); ++i) {
-    cv::Mat& m = (*bgr)[i];
-    for (int r = 0; r < m.rows; ++r) {
-      float* p = m.ptr<float>(r);
-      for (int x = 0; x < width; ++x) {
-        const float f = static_cast<float>(lamp.InverseFalloff(x, y0 + r, width, height, dirs[i]));
-        p[3 * x] *= f;
-        p[3 * x + 1] *= f;
-        p[3 * x + 2] *= f;
-      }
-    }
-  }
-}
 
 // A near-lamp band's buffers for one tile, reused tile after tile.
 struct TileBuffers {
@@ -327,7 +327,7 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
           Status& st = status[static_cast<size_t>(s)];
           try {
             st = maps.Read(y0, y1, &bgr, &valid);
-            if (st.ok() && near) DivideByFalloff(lamp, in.directions, y0, w, h, &bgr);
+            if (st.ok() && near) DivideByFalloff(lamp, in.directions, 0, y0, w, h, &bgr);
             if (st.ok()) st = BuildSamples(bgr, valid, in.lamp_radiance_rgb, o.transform, &y, &missing);
             if (st.ok()) grams[static_cast<size_t>(s)] = SampleGram(y, missing, 1, &counts[static_cast<size_t>(s)]);
           } catch (const std::exception& e) {
@@ -432,7 +432,7 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
                               e.what());
       }
       r->read_s = lap();
-      if (r->status.ok() && near) DivideByFalloff(lamp, in.directions, r->y0, w, h, &bgr);
+      if (r->status.ok() && near) DivideByFalloff(lamp, in.directions, 0, r->y0, w, h, &bgr);
       if (r->status.ok()) r->status = BuildSamples(bgr, valid, in.lamp_radiance_rgb, o.transform, &y, &missing);
       r->samples_s = lap();
       if (!r->status.ok()) return;

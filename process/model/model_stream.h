@@ -71,6 +71,12 @@ Result<std::unique_ptr<MapBands>> OpenMapFiles(const std::vector<std::string>& p
 // takes; a patch outside the maps is an error naming process.reference_patch_px.
 Result<std::vector<cv::Mat>> ReadPatches(MapBands& maps, const std::array<int, 4>& patch_px);
 
+// A near lamp: every CV_32FC3 image of `bgr` (one per direction; a crop whose top-left
+// pixel is (x0, y0) of a width x height image) divided by each pixel's fall-off, in place.
+// Negative and non-finite samples stay so; a far lamp leaves them unchanged.
+void DivideByFalloff(const NearLamp& lamp, const std::vector<Vec3>& directions, int x0, int y0,
+                     int width, int height, std::vector<cv::Mat>* bgr);
+
 // Bytes the in-memory fit would hold for the samples (width x height x 3 x 4 x maps), from
 // the headers only.
 Result<size_t> EstimateSampleBytes(const std::vector<std::string>& paths);

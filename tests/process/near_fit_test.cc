@@ -216,6 +216,28 @@ TEST_F(NearFitTest, TilesOfALampFarAwayFitAsTheSharedProjectorWithMissingSamples
   EXPECT_NEAR(tiles.relative_rms, far.relative_rms, 1e-5);
 }
 
+TEST(NearLampFalloff, ACropIsDividedAsTheSameRegionOfTheWholeImage) {
+  // The reference patch's crops are corrected with their offset in the image.
+  const SimScene scene = MakeScene(kLampMm);
+  const Capture c = Render(scene);
+  const std::vector<Vec3> dirs = {c.in.directions[3], c.in.directions[27]};
+  std::vector<cv::Mat> whole, crop;
+  for (const Vec3& l : dirs) {
+    whole.push_back(scene.Radiance(l, {1, 1, 1}));
+    crop.push_back(whole.back()(cv::Rect(37, 21, 19, 13)).clone());
+  }
+  LightFrameConfig frame;
+  frame.lamp_distance_mm = kLampMm;
+  frame.field_height_mm = kFieldMm;
+  const NearLamp lamp = NearLamp::FromLightFrame(frame, 120);
+  const cv::Mat before = crop[1].clone();
+  DivideByFalloff(lamp, dirs, 0, 0, 160, 120, &whole);
+  DivideByFalloff(lamp, dirs, 37, 21, 160, 120, &crop);
+  for (size_t i = 0; i < dirs.size(); ++i)
+    EXPECT_EQ(cv::norm(crop[i], whole[i](cv::Rect(37, 21, 19, 13)), cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::norm(crop[1], before, cv::NORM_INF), 0.0);  // the fall-off is not 1 there
+}
+
 TEST_F(NearFitTest, PrintsTheTableOfDocsLights) {
   const SimScene far_scene = MakeScene(0);
   const Capture far_capture = Render(far_scene);
