@@ -88,20 +88,6 @@ void Irls(const std::vector<Sample>& smp, int iterations, Eigen::Vector3d* g,
 
 }  // namespace
 
-Vec3 NearLamp::At(int i, int j, int width, int height, const Vec3& dir, double* falloff) const {
-  if (!near()) {
-    *falloff = 1;
-    return dir;
-  }
-  const double x = (i + 0.5 - width / 2.0) * mm_per_px, y = (height / 2.0 - j - 0.5) * mm_per_px;
-  const double z = depth_mm.empty() ? 0.0 : depth_mm.at<float>(j, i);
-  const Vec3 d = {distance_mm * dir[0] - x, distance_mm * dir[1] - y, distance_mm * dir[2] - z};
-  const double d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-  *falloff = distance_mm * distance_mm / d2;
-  const double inv = 1 / std::sqrt(d2);
-  return {d[0] * inv, d[1] * inv, d[2] * inv};
-}
-
 Result<PsResult> PhotometricStereo(const LightStack& stack, const std::vector<Vec3>& directions,
                                    const PsOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();

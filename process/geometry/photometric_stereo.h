@@ -5,9 +5,8 @@
 // residual, starting from a fit to the middle of each pixel's sorted samples).
 //
 // Near lamps: a lamp at a finite distance lights every pixel from its own direction with
-// its own 1/d^2 fall-off. NearLamp places pixel (i, j) at ((i + 0.5 - W/2), (H/2 - j - 0.5))
-// * mm_per_px on the plane z = 0 (or at a given depth map) and the lamp at distance_mm * direction; the solve is then
-// one 3x3 system per pixel instead of one pseudo-inverse shared by all pixels.
+// its own 1/d^2 fall-off (NearLamp, process/model/light_direction.h, places every pixel); the
+// solve is then one 3x3 system per pixel instead of one pseudo-inverse shared by all pixels.
 //
 // Axis convention of the output: x right, y up, z towards the camera (relight's and
 // RTIViewer's); the 8-bit encoding is RGB = round(255 * (n * 0.5 + 0.5)).
@@ -20,20 +19,9 @@
 
 #include "config/result.h"
 #include "process/geometry/light_stack.h"
+#include "process/model/light_direction.h"
 
 namespace rig {
-
-struct NearLamp {
-  double distance_mm = 0;  // 0: a far lamp (one direction for every pixel)
-  double mm_per_px = 0;
-  // CV_32FC1: every pixel's surface depth z (mm, towards the camera) relative to the arm's
-  // centre of rotation; empty: the plane z = 0 (the surface through the centre of rotation).
-  cv::Mat depth_mm;
-  bool near() const { return distance_mm > 0 && mm_per_px > 0; }
-  // Direction from pixel (i, j) of a W x H image to the lamp commanded to `dir`, and the
-  // fall-off (distance / d)^2.
-  Vec3 At(int i, int j, int width, int height, const Vec3& dir, double* falloff) const;
-};
 
 struct PsOptions {
   bool robust = true;

@@ -21,4 +21,63 @@ void DirectionToAngles(const Vec3& d, double* h_deg, double* v_deg) {
   *h_deg = std::atan2(d[0], d[2]) * kDeg;
 }
 
+Vec3 NearLamp::At(int i, int j, int width, int height, const Vec3& dir, double* falloff) const {
+  if (!near()) {
+    *falloff = 1;
+    return dir;
+  }
+  const double z = depth_mm.empty() ? 0.0 : depth_mm.at<float>(j, i);
+  return AtPosition(i + 0.5, j + 0.5, z, width, height, dir, falloff);
+}
+
+Vec3 NearLamp::AtPosition(double u, double v, double z, int width, int height, const Vec3& dir,
+                          double* falloff) const {
+  if (!near()) {
+    *falloff = 1;
+    return dir;
+  }
+  const double x = (u - width / 2.0) * mm_per_px, y = (height / 2.0 - v) * mm_per_px;
+  const Vec3 d = {distance_mm * dir[0] - x, distance_mm * dir[1] - y, distance_mm * dir[2] - z};
+  const double d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+  *falloff = distance_mm * distance_mm / d2;
+  const double inv = 1 / std::sqrt(d2);
+  return {d[0] * inv, d[1] * inv, d[2] * inv};
+}
+
+double NearLamp::InverseFalloff(int i, int j, int width, int height, const Vec3& dir) const {
+  if (!near()) return 1;
+  const double x = (i + 0.5 - width / 2.0) * mm_per_px, y = (height / 2.0 - j - 0.5) * mm_per_px;
+  const double z = depth_mm.empty() ? 0.0 : depth_mm.at<float>(j, i);
+  const double dx = distance_mm * dir[0] - x, dy = distance_mm * dir[1] - y,
+               dz = distance_mm * dir[2] - z;
+  return (dx * dx + dy * dy + dz * dz) / (distance_mm * distance_mm);
+}
+
+int NearLamp::TilePx(int width, int height, double max_deg) const {
+  if (!near()) return std::max(width, height);
+  double zmax = 0;
+  if (!depth_mm.empty()) {
+    double lo = 0, hi = 0;
+    cv::minMaxLoc(depth_mm, &lo, &hi);
+    zmax = std::max(std::abs(lo), std::abs(hi));
+  }
+  const double rx = width / 2.0 * mm_per_px, ry = height / 2.0 * mm_per_px;
+  const double reach = std::sqrt(rx * rx + ry * ry + zmax * zmax);
+  const double nearest = distance_mm - reach;
+  if (nearest <= 0) return 1;
+  // A tile of side s px reaches s * mm_per_px / sqrt(2) from its centre.
+  const double max_rad = max_deg * std::numbers::pi / 180.0;
+  const double side = max_rad * nearest * std::numbers::sqrt2 / mm_per_px;
+  return std::clamp(static_cast<int>(std::floor(side)), 1, std::max(width, height));
+}
+
+NearLamp NearLamp::FromLightFrame(const LightFrameConfig& frame, int height) {
+  NearLamp lamp;
+  if (frame.lamp_distance_mm > 0 && frame.field_height_mm > 0 && height > 0) {
+    lamp.distance_mm = frame.lamp_distance_mm;
+    lamp.mm_per_px = frame.field_height_mm / height;
+  }
+  return lamp;
+}
+
 }  // namespace rig

@@ -3,9 +3,14 @@
 // Object frame: x to the right and y up as seen from the camera, z towards the camera.
 //   direction(h, v) = ( sin h cos v,  sin v,  cos h cos v )
 // where h and v are the physical angles: sign * commanded + offset (config [light_frame]).
+//
+// Near lamps (docs/lights.md): NearLamp places every pixel and gives its own direction to the
+// lamp and its own fall-off; photometric stereo and the harmonic fit both use it.
 #pragma once
 
 #include <array>
+
+#include <opencv2/core.hpp>
 
 #include "config/config.h"
 
@@ -18,5 +23,35 @@ Vec3 LightDirection(double h_deg, double v_deg, const LightFrameConfig& frame = 
 
 // The inverse: a unit direction to physical angles (degrees), h in (-180, 180].
 void DirectionToAngles(const Vec3& dir, double* h_deg, double* v_deg);
+
+// A lamp at a finite distance. Pixel (i, j) of a W x H image lies at
+// ((i + 0.5 - W/2), (H/2 - j - 0.5)) * mm_per_px on the plane z = 0 through the arm's centre
+// of rotation (or at a given depth), the lamp commanded to `dir` at distance_mm * dir.
+struct NearLamp {
+  double distance_mm = 0;  // 0: a far lamp (one direction for every pixel)
+  double mm_per_px = 0;
+  // CV_32FC1: every pixel's surface depth z (mm, towards the camera) relative to the arm's
+  // centre of rotation; empty: the plane z = 0 (the surface through the centre of rotation).
+  cv::Mat depth_mm;
+  bool near() const { return distance_mm > 0 && mm_per_px > 0; }
+  // Direction from pixel (i, j) of a W x H image to the lamp commanded to `dir`, and the
+  // fall-off (distance / d)^2.
+  Vec3 At(int i, int j, int width, int height, const Vec3& dir, double* falloff) const;
+  // The same from any image position (u, v) (pixels from the top-left corner: pixel (i, j)'s
+  // centre is (i + 0.5, j + 0.5)) at depth z_mm, e.g. a tile's centre.
+  Vec3 AtPosition(double u, double v, double z_mm, int width, int height, const Vec3& dir,
+                  double* falloff) const;
+  // 1 / fall-off of pixel (i, j), d^2 / distance^2: what divides its sample (no square root).
+  double InverseFalloff(int i, int j, int width, int height, const Vec3& dir) const;
+  // The largest square tile (pixels, at least 1) inside which every pixel's direction stays
+  // within max_deg of the direction at the tile's centre, for every lamp of a W x H image on
+  // the plane z = 0 (with a depth map: its largest |z| is added to the field's radius):
+  // moving the surface point by s changes the direction by at most s / |lamp - point|, and
+  // |lamp - point| >= distance - the farthest point's distance from the centre of rotation.
+  int TilePx(int width, int height, double max_deg) const;
+  // From a configuration's [light_frame] (lamp_distance_mm, field_height_mm) for images of
+  // `height` rows; far when either is 0.
+  static NearLamp FromLightFrame(const LightFrameConfig& frame, int height);
+};
 
 }  // namespace rig

@@ -159,6 +159,24 @@ Result<std::vector<cv::Mat>> ReadPatches(MapBands& maps, const std::array<int, 4
   return crops;
 }
 
+void DivideByFalloff(const NearLamp& lamp, const std::vector<Vec3>& dirs, int x0, int y0,
+                     int width, int height, std::vector<cv::Mat>* bgr) {
+  if (!lamp.near()) return;
+  for (size_t i = 0; i < bgr->size() && i < dirs.size(); ++i) {
+    cv::Mat& m = (*bgr)[i];
+    for (int r = 0; r < m.rows; ++r) {
+      float* p = m.ptr<float>(r);
+      for (int x = 0; x < m.cols; ++x) {
+        const float f =
+            static_cast<float>(lamp.InverseFalloff(x0 + x, y0 + r, width, height, dirs[i]));
+        p[3 * x] *= f;
+        p[3 * x + 1] *= f;
+        p[3 * x + 2] *= f;
+      }
+    }
+  }
+}
+
 Result<StreamFitOutput> FitModelStreaming(const StreamFitInput& in, const FitOptions& o,
                                           const std::string& out_path, ExrPixelType type) {
   const size_t n = in.paths.size();
@@ -182,6 +200,81 @@ struct FittedBand {
   Status status;
 };
 
+// A near-lamp band's buffers for one tile, reused tile after tile.
+struct TileBuffers {
+  std::vector<Vec3> dirs;
+  SampleMatrix y, coeffs;
+  std::vector<uint8_t> missing, valid;
+};
+
+// Fits rows [y0, y0 + rows) of a near-lamp band tile by tile: each tile's projector is built
+// from the directions at the tile's centre with the chosen basis, method and relative λ;
+// its pixels' samples are gathered and fitted exactly as ApplyProjector fits a band (the
+// same solves for missing samples), and the coefficients scattered back.
+Status ApplyTiles(const Projector& chosen, const NearLamp& lamp, const std::vector<Vec3>& dirs,
+                  const std::vector<double>& weights, double max_condition, int tile, int y0,
+                  int rows, int w, int h, const SampleMatrix& y,
+                  const std::vector<uint8_t>& missing, SampleMatrix* coeffs,
+                  std::vector<uint8_t>* valid_px, MissingStats* stats, size_t* built,
+                  TileBuffers* buf) {
+  const size_t n = dirs.size();
+  const size_t pixels = static_cast<size_t>(rows) * w;
+  const int k = chosen.basis.size();
+  coeffs->resize(k, y.cols());
+  valid_px->assign(pixels, 1);
+  buf->dirs.resize(n);
+  for (int ty0 = (y0 / tile) * tile; ty0 < y0 + rows; ty0 += tile) {
+    const int ty1 = std::min(h, ty0 + tile);
+    const int ry0 = std::max(y0, ty0), ry1 = std::min(y0 + rows, ty1);
+    for (int tx0 = 0; tx0 < w; tx0 += tile) {
+      const int tx1 = std::min(w, tx0 + tile);
+      // The tile's centre, on the plane or at the tile's mean depth.
+      const double z =
+          lamp.depth_mm.empty() ? 0.0
+                                : cv::mean(lamp.depth_mm(cv::Range(ty0, ty1), cv::Range(tx0, tx1)))[0];
+      double falloff = 1;
+      for (size_t i = 0; i < n; ++i)
+        buf->dirs[i] = lamp.AtPosition((tx0 + tx1) / 2.0, (ty0 + ty1) / 2.0, z, w, h, dirs[i], &falloff);
+      auto pr = BuildProjector(chosen.basis, buf->dirs, weights, chosen.method,
+                               chosen.lambda_relative, max_condition);
+      if (!pr.ok()) {
+        return pr.error().Within(fmt::format("near-lamp tile x {}-{}, y {}-{}", tx0, tx1 - 1, ty0, ty1 - 1));
+      }
+      ++*built;
+      const int tw = tx1 - tx0, th = ry1 - ry0;
+      const size_t tpx = static_cast<size_t>(tw) * th;
+      buf->y.resize(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(3 * tpx));
+      for (int r = 0; r < th; ++r)
+        buf->y.middleCols(3 * r * tw, 3 * tw) =
+            y.middleCols(3 * ((static_cast<Eigen::Index>(ry0 - y0 + r)) * w + tx0), 3 * tw);
+      buf->missing.clear();
+      if (!missing.empty()) {
+        buf->missing.assign(n * tpx, 0);
+        bool any = false;
+        for (size_t i = 0; i < n; ++i)
+          for (int r = 0; r < th; ++r) {
+            const uint8_t* src = missing.data() + i * pixels + static_cast<size_t>(ry0 - y0 + r) * w + tx0;
+            uint8_t* dst = buf->missing.data() + i * tpx + static_cast<size_t>(r) * tw;
+            for (int c = 0; c < tw; ++c) any |= (dst[c] = src[c]) != 0;
+          }
+        if (!any) buf->missing.clear();
+      }
+      const MissingStats s = ApplyProjector(*pr, buf->dirs, weights, max_condition, buf->y,
+                                            buf->missing, &buf->coeffs, &buf->valid);
+      stats->pixels_with_missing += s.pixels_with_missing;
+      stats->flagged += s.flagged;
+      stats->patterns += s.patterns;
+      for (int r = 0; r < th; ++r) {
+        const Eigen::Index row = ry0 - y0 + r;
+        coeffs->middleCols(3 * (row * w + tx0), 3 * tw) = buf->coeffs.middleCols(3 * r * tw, 3 * tw);
+        std::copy_n(buf->valid.data() + static_cast<size_t>(r) * tw, tw,
+                    valid_px->data() + static_cast<size_t>(row) * w + tx0);
+      }
+    }
+  }
+  return Ok();
+}
+
 }  // namespace
 
 Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& in,
@@ -198,6 +291,17 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
   try {
     const int w = maps.width(), h = maps.height();
     const int band = std::max(1, in.band_rows);
+    // A near lamp: samples divided by their fall-off; tiles with their own projectors.
+    const NearLamp& lamp = in.near_lamp;
+    const bool near = lamp.near();
+    if (near && !lamp.depth_mm.empty() &&
+        (lamp.depth_mm.type() != CV_32FC1 || lamp.depth_mm.cols != w || lamp.depth_mm.rows != h)) {
+      return MakeError(ErrorCode::kInvalidInput, "near lamp",
+                       "the depth map must be CV_32FC1 {}x{} like the radiance maps", w, h);
+    }
+    const int tile = !near || in.near_falloff_only
+                         ? 0
+                         : (in.near_tile_px > 0 ? in.near_tile_px : lamp.TilePx(w, h, in.near_tile_max_deg));
 
     // Pass 1: the Gram matrix of evenly spaced bands chooses order and λ.
     Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(n),
@@ -223,6 +327,7 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
           Status& st = status[static_cast<size_t>(s)];
           try {
             st = maps.Read(y0, y1, &bgr, &valid);
+            if (st.ok() && near) DivideByFalloff(lamp, in.directions, 0, y0, w, h, &bgr);
             if (st.ok()) st = BuildSamples(bgr, valid, in.lamp_radiance_rgb, o.transform, &y, &missing);
             if (st.ok()) grams[static_cast<size_t>(s)] = SampleGram(y, missing, 1, &counts[static_cast<size_t>(s)]);
           } catch (const std::exception& e) {
@@ -244,6 +349,8 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
     StreamFitOutput out;
     out.width = w;
     out.height = h;
+    out.near_tile_px = tile;
+    std::atomic<size_t> projectors{0};
     const double gram_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     RIG_ASSIGN_OR_RETURN(out.selection, SelectProjector(in.directions, weights, gram, count, o));
     const double select_s =
@@ -268,6 +375,13 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
     Model header_model(pr.basis, info, w, h);
     auto attributes = ModelHeaderAttributes(header_model);
     attributes["flagged_pixels"] = "see the 'valid' channel (streamed fit)";
+    if (near) {
+      attributes["near_lamp"] = fmt::format(
+          "{:.6g} mm, {:.6g} mm/px, {}; samples divided by their fall-off, {}", lamp.distance_mm,
+          lamp.mm_per_px, lamp.depth_mm.empty() ? "surface at z = 0" : "depth map given",
+          tile > 0 ? fmt::format("directions at the centre of every {} px tile", tile)
+                   : std::string("one direction per lamp"));
+    }
     const int k = pr.basis.size();
     const bool with_valid = maps.any_flags();
     const Imf::PixelType pixel = type == ExrPixelType::kHalf ? Imf::HALF : Imf::FLOAT;
@@ -297,12 +411,13 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
       std::vector<cv::Mat> bgr, valid;
       SampleMatrix y, coeffs;
       std::vector<uint8_t> missing, valid_px;
+      TileBuffers tiles;
     };
     auto fit_band = [&](int b, FittedBand* r, Buffers& buf) {
       r->y0 = b * band;
       const int y1 = std::min(h, r->y0 + band);
       r->rows = y1 - r->y0;
-      auto& [bgr, valid, y, coeffs, missing, valid_px] = buf;
+      auto& [bgr, valid, y, coeffs, missing, valid_px, tiles] = buf;
       auto t = std::chrono::steady_clock::now();
       auto lap = [&t] {
         const auto now = std::chrono::steady_clock::now();
@@ -317,11 +432,21 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
                               e.what());
       }
       r->read_s = lap();
+      if (r->status.ok() && near) DivideByFalloff(lamp, in.directions, 0, r->y0, w, h, &bgr);
       if (r->status.ok()) r->status = BuildSamples(bgr, valid, in.lamp_radiance_rgb, o.transform, &y, &missing);
       r->samples_s = lap();
       if (!r->status.ok()) return;
-      r->missing = ApplyProjector(pr, in.directions, weights, o.max_condition, y, missing, &coeffs,
-                                  &valid_px);
+      if (tile > 0) {
+        size_t built = 0;
+        r->status = ApplyTiles(pr, lamp, in.directions, weights, o.max_condition, tile, r->y0,
+                               r->rows, w, h, y, missing, &coeffs, &valid_px, &r->missing,
+                               &built, &tiles);
+        projectors += built;
+        if (!r->status.ok()) return;
+      } else {
+        r->missing = ApplyProjector(pr, in.directions, weights, o.max_condition, y, missing,
+                                    &coeffs, &valid_px);
+      }
       cv::Mat as_float(k, static_cast<int>(coeffs.cols()), CV_32F, coeffs.data());
       if (type == ExrPixelType::kHalf) {
         as_float.convertTo(r->store, CV_16F);
@@ -453,6 +578,11 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
       return MakeError(ErrorCode::kIo, out_path, "cannot move the written model into place");
     }
     out.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (tile > 0) out.projectors = projectors.load();
+    if (near) {
+      Log("process")->info("near lamp distance_mm={:.6g} mm_per_px={:.6g} tile_px={} projectors={}",
+                           lamp.distance_mm, lamp.mm_per_px, tile, out.projectors);
+    }
     Log("process")->info("band fit {}x{} poses={} order={} terms={} workers={} missing_pixels={} "
                          "flagged={} time_s={:.2f} (gram {:.2f}, selection {:.2f}; summed over "
                          "workers: read {:.2f}, samples {:.2f}, projection {:.2f}; writer: waited "

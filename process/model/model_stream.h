@@ -26,6 +26,16 @@ struct StreamFitInput {
   int selection_rows = 256;        // rows (in evenly spaced bands) that choose order and λ
   // The model file's compression (all lossless; docs/model.md has their size and speed).
   ExrCompression compression = ExrCompression::kZip;
+  // A near lamp (docs/lights.md "Near lamps"): every sample is divided by its pixel's
+  // fall-off, and every tile of near_tile_px x near_tile_px pixels (on a grid from the
+  // image's top-left corner) is fitted with its own projector, built from the directions at
+  // the tile's centre (1: every pixel its own). Order and λ are chosen once, as for a far
+  // lamp, from `directions` (the lamp seen from the centre of rotation). A far lamp
+  // (distance 0) takes the one shared projector, as before.
+  NearLamp near_lamp;
+  int near_tile_px = 0;             // 0: near_lamp.TilePx(width, height, near_tile_max_deg)
+  double near_tile_max_deg = 1.0;   // see NearLamp::TilePx
+  bool near_falloff_only = false;   // divide by the fall-off, one projector (for measurement)
 };
 
 struct StreamFitOutput {
@@ -34,6 +44,8 @@ struct StreamFitOutput {
   double loo_rmse = 0;
   double time_s = 0;
   int width = 0, height = 0;  // of the maps and the model
+  int near_tile_px = 0;       // the tile of a near-lamp fit (0: far lamp, or fall-off only)
+  size_t projectors = 1;      // projectors built for the bands (tiles recurring in bands counted again)
 };
 
 // Where a band-wise fit reads its maps: rows [y0, y1) of every map, as CV_32FC3 BGR radiance
@@ -58,6 +70,12 @@ Result<std::unique_ptr<MapBands>> OpenMapFiles(const std::vector<std::string>& p
 // The patch (x, y, width, height) of every map, as the CV_32FC3 crops CalibrateLampRadiance
 // takes; a patch outside the maps is an error naming process.reference_patch_px.
 Result<std::vector<cv::Mat>> ReadPatches(MapBands& maps, const std::array<int, 4>& patch_px);
+
+// A near lamp: every CV_32FC3 image of `bgr` (one per direction; a crop whose top-left
+// pixel is (x0, y0) of a width x height image) divided by each pixel's fall-off, in place.
+// Negative and non-finite samples stay so; a far lamp leaves them unchanged.
+void DivideByFalloff(const NearLamp& lamp, const std::vector<Vec3>& directions, int x0, int y0,
+                     int width, int height, std::vector<cv::Mat>* bgr);
 
 // Bytes the in-memory fit would hold for the samples (width x height x 3 x 4 x maps), from
 // the headers only.

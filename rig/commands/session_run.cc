@@ -126,10 +126,15 @@ Status FitSessionModel(const Session& session, const MapStore* maps) {
   if (!bands) {
     RIG_ASSIGN_OR_RETURN(bands, OpenMapFiles(in.paths));
   }
+  // A near lamp ([light_frame] lamp_distance_mm > 0): per-pixel fall-off, per-tile directions.
+  in.near_lamp = NearLamp::FromLightFrame(config.light_frame, bands->height());
   const auto& patch = config.process.reference_patch_px;
   if (patch[2] > 0 && patch[3] > 0) {
     // Lamp radiance from the reference patch: only the patch of each map is read.
     RIG_ASSIGN_OR_RETURN(std::vector<cv::Mat> crops, ReadPatches(*bands, patch));
+    // The patch's reflectance is the far lamp's: its samples without their fall-off.
+    DivideByFalloff(in.near_lamp, in.directions, patch[0], patch[1], bands->width(),
+                    bands->height(), &crops);
     RIG_ASSIGN_OR_RETURN(in.lamp_radiance_rgb,
                          CalibrateLampRadiance(crops, {0, 0, patch[2], patch[3]},
                                                config.process.reference_reflectance));
@@ -146,6 +151,10 @@ Status FitSessionModel(const Session& session, const MapStore* maps) {
   fs::path out = model_dir / "model.exr";
   RIG_ASSIGN_OR_RETURN(StreamFitOutput fit, FitModelFromBands(*bands, in, options, out.string(), type));
   log->info("model fitted from {}", source);
+  if (in.near_lamp.near()) {
+    log->info("near lamp {:.0f} mm: samples divided by their fall-off, {} px tiles ({} projectors)",
+              in.near_lamp.distance_mm, fit.near_tile_px, fit.projectors);
+  }
   // What each order costs and gives, beside the model, and its size on disk.
   const auto model_bytes = fs::file_size(out, ec);
   const double pixels = static_cast<double>(fit.width) * static_cast<double>(fit.height);
