@@ -588,6 +588,15 @@ void CheckConsistency(const Config& c, Reader& r) {
   if (c.light_frame.lamp_distance_mm > 0 && c.light_frame.field_height_mm <= 0)
     r.ReportAt("light_frame.field_height_mm",
                "a near lamp (lamp_distance_mm > 0) needs the field's height at the object");
+  // A lamp no farther from the arm's centre than the field is tall sits inside the field it
+  // lights (a typo for a longer distance, most likely); the near-lamp fit would shrink its
+  // tiles to single pixels and run for hours.
+  if (c.light_frame.lamp_distance_mm > 0 && c.light_frame.field_height_mm > 0 &&
+      c.light_frame.lamp_distance_mm <= c.light_frame.field_height_mm)
+    r.ReportAt("light_frame.lamp_distance_mm",
+               fmt::format("{:g} mm is no farther than the field is tall ({:g} mm): the lamp "
+                           "would sit inside the field it lights",
+                           c.light_frame.lamp_distance_mm, c.light_frame.field_height_mm));
   if (c.sim.camera.shutter_max_s <= c.sim.camera.shutter_min_s)
     r.ReportAt("sim.camera.shutter_max_s", "must exceed shutter_min_s");
 }

@@ -63,6 +63,18 @@ TEST(Config, WrongTypeNamesKeyAndPosition) {
   EXPECT_EQ(d.column, 14);
 }
 
+// A lamp inside the field it lights is a mistake, refused naming the key; 300 mm over a
+// 100 mm field is a near lamp and accepted.
+TEST(Config, ALampInsideTheFieldItLightsIsRefused) {
+  std::string text = std::string(kMinimal) +
+                     "\n[light_frame]\nlamp_distance_mm = 30\nfield_height_mm = 100\n";
+  auto d = Only(ParseConfig(text, "t.toml"), "light_frame.lamp_distance_mm");
+  EXPECT_THAT(d.message, HasSubstr("inside the field it lights"));
+  std::string near = std::string(kMinimal) +
+                     "\n[light_frame]\nlamp_distance_mm = 300\nfield_height_mm = 100\n";
+  EXPECT_TRUE(ParseConfig(near, "t.toml").ok());
+}
+
 TEST(Config, OutOfRangeNamesTheRange) {
   std::string text = std::string(kMinimal) + "\n[process]\nthreads = 0\n";
   auto d = Only(ParseConfig(text, "t.toml"), "process.threads");
