@@ -20,6 +20,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -312,7 +313,11 @@ int main(int argc, char** argv) {
       cv::randu(ny, -tilt, tilt);
       cv::sqrt(1.0f - nx.mul(nx) - ny.mul(ny), nz);
       rig::MapStore store(rig::ExrPixelType::kHalf, dirs.size(), rig::MapStore::DefaultMaxBytes());
+      // As a session plans it: the selection's Gram matrix accumulated as the maps arrive.
+      std::map<std::string, rig::Vec3> planned;
+      for (int i = 0; i < poses; ++i) planned["pose" + std::to_string(i)] = dirs[i];
       rig::StreamFitInput in;
+      store.PlanSelectionGram(planned, in.lamp_radiance_rgb, rig::FitOptions{}.transform, in.light_frame);
       in.directions = dirs;
       in.weights = weights;
       std::vector<std::string> keys;

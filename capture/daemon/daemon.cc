@@ -417,6 +417,7 @@ void CaptureDaemon::StartProcessing(RunState& run) {
     store_ = std::make_shared<MapStore>(
         config.process.hdr_pixel_type == "half" ? ExrPixelType::kHalf : ExrPixelType::kFloat,
         run.poses.size(), MapStore::DefaultMaxBytes());
+    PlanSessionGram(*store_, config);
     run.processor.emplace(layout, config, store_.get());
   }
   for (const auto& p : run.poses) {

@@ -10,6 +10,7 @@
 #include "config/log.h"
 #include "process/io/exr_io.h"
 #include "process/io/image_io.h"
+#include "process/model/fit.h"
 
 namespace rig {
 namespace {
@@ -311,6 +312,18 @@ void HdrStage::Flush() {
 }
 
 // ---- BracketProcessor ------------------------------------------------------------------
+
+void PlanSessionGram(MapStore& store, const Config& config) {
+  const auto& patch = config.process.reference_patch_px;
+  if (patch[2] > 0 && patch[3] > 0) return;
+  auto options = FitOptionsFromConfig(config.process);
+  if (!options.ok()) return;
+  std::map<std::string, Vec3> directions;
+  for (const Pose& p : PlanGrid(config.grid))
+    directions[p.Name()] = LightDirection(p.h_deg, p.v_deg, config.light_frame);
+  store.PlanSelectionGram(std::move(directions), config.lamp.radiance_rgb, options->transform,
+                          config.light_frame);
+}
 
 BracketProcessor::BracketProcessor(SessionLayout layout, Config config, MapStore* store)
     : stage_(std::move(layout), config),

@@ -55,6 +55,12 @@ struct ProcessingSummary {
 Result<std::vector<BracketJob>> CompleteBrackets(const Session& session);
 
 // Merges brackets into radiance maps. Not thread-safe by itself; BracketProcessor wraps it.
+// Plans `store` to accumulate the session model's Gram matrix as the maps arrive
+// (MapStore::PlanSelectionGram) for the poses of the configuration's grid, its light frame,
+// lamp radiance and fit space, so that the model is fitted straight after the last map. Not
+// when the lamp radiance comes from a reference patch (known only from every map).
+void PlanSessionGram(MapStore& store, const Config& config);
+
 class HdrStage {
  public:
   HdrStage(SessionLayout layout, Config config);

@@ -460,7 +460,10 @@ void CaptureService::RunProcess(JobInfo& job, Session& session) {
   MapStore maps(session.config().process.hdr_pixel_type == "half" ? ExrPixelType::kHalf
                                                                   : ExrPixelType::kFloat,
                 brackets->size(), MapStore::DefaultMaxBytes());
-  if (hooks_.fit_model) stage.set_map_store(&maps);
+  if (hooks_.fit_model) {
+    PlanSessionGram(maps, session.config());
+    stage.set_map_store(&maps);
+  }
   stage.set_skip_up_to_date(!job.force);
   for (auto& b : *brackets) stage.Add(std::move(b));
   stage.Flush();

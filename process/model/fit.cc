@@ -391,7 +391,6 @@ Status BuildSamples(const std::vector<cv::Mat>& radiance, const std::vector<cv::
   const size_t n = radiance.size();
   if (n == 0) return MakeError(ErrorCode::kInvalidInput, "samples", "no radiance maps");
   const int rows = radiance[0].rows, cols = radiance[0].cols;
-  const size_t pixels = static_cast<size_t>(rows) * cols;
   for (size_t i = 0; i < n; ++i) {
     if (radiance[i].type() != CV_32FC3 || radiance[i].rows != rows || radiance[i].cols != cols) {
       return MakeError(ErrorCode::kInvalidInput, fmt::format("pose {}", i),
@@ -406,6 +405,19 @@ Status BuildSamples(const std::vector<cv::Mat>& radiance, const std::vector<cv::
     return MakeError(ErrorCode::kInvalidInput, "samples", "{} validity masks for {} maps",
                      valid.size(), n);
   }
+  return BuildSamplesFromRows(
+      n, rows, cols, [&](size_t i, int y) { return radiance[i].ptr<float>(y); },
+      [&](size_t i, int y) -> const uint8_t* { return valid.empty() ? nullptr : valid[i].ptr<uint8_t>(y); },
+      e_rgb, transform, samples, missing);
+}
+
+Status BuildSamplesFromRows(size_t n, int rows, int cols,
+                            const std::function<const float*(size_t, int)>& row,
+                            const std::function<const uint8_t*(size_t, int)>& valid_row,
+                            const std::array<double, 3>& e_rgb, const FitTransform& transform,
+                            SampleMatrix* samples, std::vector<uint8_t>* missing) {
+  if (n == 0) return MakeError(ErrorCode::kInvalidInput, "samples", "no radiance maps");
+  const size_t pixels = static_cast<size_t>(rows) * cols;
   samples->resize(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(pixels * 3));
   missing->clear();
   // BGR order in memory; lamp radiance is R, G, B.
@@ -421,8 +433,8 @@ Status BuildSamples(const std::vector<cv::Mat>& radiance, const std::vector<cv::
     float* out = samples->row(static_cast<Eigen::Index>(i)).data();
     bool pose_missing = false;
     for (int y = 0; y < rows; ++y) {
-      const float* in = radiance[i].ptr<float>(y);
-      const uint8_t* vm = valid.empty() ? nullptr : valid[i].ptr<uint8_t>(y);
+      const float* in = row(i, y);
+      const uint8_t* vm = valid_row(i, y);
       float* o = out + static_cast<size_t>(y) * cols * 3;
       const size_t values = static_cast<size_t>(cols) * 3;
       // Every sample scaled by 1/E; the missing ones are set to 0 below.

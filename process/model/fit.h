@@ -9,6 +9,7 @@
 #pragma once
 
 #include <array>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -140,6 +141,17 @@ Status BuildSamples(const std::vector<cv::Mat>& radiance, const std::vector<cv::
                     const std::array<double, 3>& lamp_radiance_rgb,
                     const FitTransform& transform, SampleMatrix* samples,
                     std::vector<uint8_t>* missing);
+
+// The same from rows given one at a time: `row(i, y)` is row y (0-based in the band) of pose
+// i's radiance (cols x BGR floats, valid until the next call), `valid_row(i, y)` its validity
+// or nullptr. The same arithmetic as BuildSamples, so a source that converts its rows on the
+// fly (maps held in half, MapStore) gives the same samples without a band of floats between.
+Status BuildSamplesFromRows(size_t poses, int rows, int cols,
+                            const std::function<const float*(size_t, int)>& row,
+                            const std::function<const uint8_t*(size_t, int)>& valid_row,
+                            const std::array<double, 3>& lamp_radiance_rgb,
+                            const FitTransform& transform, SampleMatrix* samples,
+                            std::vector<uint8_t>* missing);
 
 // Gram matrix of the columns of pixels without missing samples, every `stride`-th pixel.
 Eigen::MatrixXd SampleGram(const SampleMatrix& samples, const std::vector<uint8_t>& missing,

@@ -80,4 +80,10 @@ NearLamp NearLamp::FromLightFrame(const LightFrameConfig& frame, int height) {
   return lamp;
 }
 
+bool NearLamp::SameSamplingAs(const NearLamp& o) const {
+  if (!near() && !o.near()) return true;
+  return distance_mm == o.distance_mm && mm_per_px == o.mm_per_px && depth_mm.empty() &&
+         o.depth_mm.empty();
+}
+
 }  // namespace rig

@@ -52,6 +52,9 @@ struct NearLamp {
   // From a configuration's [light_frame] (lamp_distance_mm, field_height_mm) for images of
   // `height` rows; far when either is 0.
   static NearLamp FromLightFrame(const LightFrameConfig& frame, int height);
+  // Whether samples divided by this lamp's fall-off equal those divided by `o`'s, bit for bit
+  // (two far lamps always; a lamp with a depth map is never taken as equal to another).
+  bool SameSamplingAs(const NearLamp& o) const;
 };
 
 }  // namespace rig

@@ -18,10 +18,11 @@ size_t MapBytes(int width, int height, ExrPixelType type, bool flags) {
 // The held maps of one fit, read as bands (CV_32FC3; validity when some map has flags).
 class StoreBands : public MapBands {
  public:
-  StoreBands(std::vector<std::shared_ptr<const void>> keep, std::vector<const cv::Mat*> bgr,
+  StoreBands(const MapStore* store, std::vector<std::string> keys,
+             std::vector<std::shared_ptr<const void>> keep, std::vector<const cv::Mat*> bgr,
              std::vector<const cv::Mat*> valid, int width, int height)
-      : keep_(std::move(keep)), bgr_(std::move(bgr)), valid_(std::move(valid)), width_(width),
-        height_(height) {
+      : store_(store), keys_(std::move(keys)), keep_(std::move(keep)), bgr_(std::move(bgr)),
+        valid_(std::move(valid)), width_(width), height_(height) {
     for (const cv::Mat* v : valid_) any_flags_ = any_flags_ || !v->empty();
   }
   int width() const override { return width_; }
@@ -29,6 +30,41 @@ class StoreBands : public MapBands {
   size_t count() const override { return bgr_.size(); }
   bool any_flags() const override { return any_flags_; }
   bool concurrent() const override { return true; }
+  // Each map's rows converted one at a time into a row of floats (in the cache) and made into
+  // samples from there: the same values as Read + BuildSamples without a band of floats per
+  // map written and read back.
+  Status ReadSamples(int y0, int y1, const SampleSpace& space, const std::vector<Vec3>& directions,
+                     std::vector<cv::Mat>* bgr, std::vector<cv::Mat>* /*valid*/, SampleMatrix* samples,
+                     std::vector<uint8_t>* missing) override {
+    if (y0 < 0 || y1 > height_ || y0 >= y1) {
+      return MakeError(ErrorCode::kInvalidInput, "maps in memory", "rows {}-{} of {}", y0, y1 - 1,
+                       height_);
+    }
+    bgr->resize(1);
+    cv::Mat& row = (*bgr)[0];
+    row.create(1, width_, CV_32FC3);
+    const bool near = space.lamp.near();
+    std::vector<cv::Mat> one(1);
+    auto row_of = [&](size_t i, int y) -> const float* {
+      const cv::Mat& held = *bgr_[i];
+      if (held.type() == CV_32FC3 && !near) return held.ptr<float>(y0 + y);
+      held.row(y0 + y).convertTo(row, CV_32F);
+      if (near && i < directions.size()) {
+        one[0] = row;
+        DivideByFalloff(space.lamp, {directions[i]}, 0, y0 + y, width_, height_, &one);
+      }
+      return row.ptr<float>(0);
+    };
+    auto valid_of = [&](size_t i, int y) -> const uint8_t* {
+      return valid_[i]->empty() ? nullptr : valid_[i]->ptr<uint8_t>(y0 + y);
+    };
+    return BuildSamplesFromRows(bgr_.size(), y1 - y0, width_, row_of, valid_of, space.lamp_radiance_rgb,
+                                space.transform, samples, missing);
+  }
+  std::optional<GramSum> SelectionGram(const std::vector<Vec3>& directions, const SelectionLayout& layout,
+                                       const SampleSpace& space) const override {
+    return store_->SelectionGram(keys_, directions, layout, space);
+  }
   Status Read(int y0, int y1, std::vector<cv::Mat>* bgr, std::vector<cv::Mat>* valid) override {
     if (y0 < 0 || y1 > height_ || y0 >= y1) {
       return MakeError(ErrorCode::kInvalidInput, "maps in memory", "rows {}-{} of {}", y0, y1 - 1,
@@ -54,6 +90,8 @@ class StoreBands : public MapBands {
   }
 
  private:
+  const MapStore* store_;
+  std::vector<std::string> keys_;
   std::vector<std::shared_ptr<const void>> keep_;  // the maps stay alive while read
   std::vector<const cv::Mat*> bgr_, valid_;
   int width_, height_;
@@ -78,11 +116,18 @@ Status MapStore::Add(const std::string& key, const cv::Mat& radiance, const cv::
   if (!flags.empty() && (flags.type() != CV_8UC1 || flags.size() != radiance.size())) {
     return MakeError(ErrorCode::kInvalidInput, key, "flags must be CV_8UC1 of the map's size");
   }
-  std::lock_guard<std::mutex> lock(mu_);
+  std::lock_guard<std::mutex> serial(gram_mu_);
+  std::unique_lock<std::mutex> lock(mu_);
   if (!off_reason_.empty()) return Ok();
   if (width_ == 0) {
-    // Every planned map as large as this one, each with flags: the most the store would hold.
-    const size_t need = planned_ * MapBytes(radiance.cols, radiance.rows, type_, true);
+    // Every planned map as large as this one, each with flags (and its selection samples when
+    // the Gram matrix is accumulated): the most the store would hold.
+    size_t per_map = MapBytes(radiance.cols, radiance.rows, type_, true);
+    if (plan_) {
+      const SelectionLayout layout{radiance.cols, radiance.rows, plan_->band_rows, plan_->selection_rows};
+      for (const auto& [y0, y1] : layout.Bands()) per_map += static_cast<size_t>(y1 - y0) * radiance.cols * 13;
+    }
+    const size_t need = planned_ * per_map;
     if (need > max_bytes_) {
       off_reason_ = fmt::format("{} maps of {}x{} need {:.1f} GB in memory, more than the {:.1f} GB "
                                 "allowed",
@@ -109,8 +154,59 @@ Status MapStore::Add(const std::string& key, const cv::Mat& radiance, const cv::
     bytes_ -= MapBytes(width_, height_, type_, !it->second->valid.empty());
   }
   bytes_ += MapBytes(width_, height_, type_, !held->valid.empty());
-  held_[key] = std::move(held);
+  held_[key] = held;
+  lock.unlock();
+  if (plan_) {
+    // The new map's products with every map held, while the rig moves on.
+    if (!gram_) {
+      const SelectionLayout layout{width_, height_, plan_->band_rows, plan_->selection_rows};
+      const SampleSpace space{plan_->lamp_radiance_rgb, plan_->transform,
+                              NearLamp::FromLightFrame(plan_->light_frame, height_)};
+      gram_ = std::make_unique<SelectionGramAccumulator>(layout, space, plan_->directions);
+    }
+    const Vec3* direction = gram_->Direction(key);
+    if (direction == nullptr) {
+      gram_->Drop(key);
+    } else {
+      auto samples = SelectionSamplesOf(held->bgr, held->valid, *direction, gram_->layout(), gram_->space());
+      if (!samples.ok()) {
+        // Held without its products: the fit computes the Gram matrix itself.
+        Log("process")->warn("{}: the selection's Gram matrix is not accumulated: {}", key,
+                             samples.error().ToString());
+        gram_->Drop(key);
+        return Ok();
+      }
+      const size_t before = gram_->bytes();
+      gram_->Add(key, std::make_shared<const MapSelectionSamples>(std::move(samples).value()));
+      lock.lock();
+      bytes_ = bytes_ + gram_->bytes() - before;
+    }
+  }
   return Ok();
+}
+
+void MapStore::PlanSelectionGram(std::map<std::string, Vec3> directions,
+                                 std::array<double, 3> lamp_radiance_rgb, FitTransform transform,
+                                 LightFrameConfig light_frame, int band_rows, int selection_rows) {
+  std::lock_guard<std::mutex> serial(gram_mu_);
+  plan_ = GramPlan{std::move(directions), lamp_radiance_rgb, transform, light_frame, band_rows, selection_rows};
+  gram_.reset();
+}
+
+std::optional<GramSum> MapStore::SelectionGram(const std::vector<std::string>& keys,
+                                               const std::vector<Vec3>& directions,
+                                               const SelectionLayout& layout,
+                                               const SampleSpace& space) const {
+  std::lock_guard<std::mutex> serial(gram_mu_);
+  if (!gram_ || keys.size() != directions.size() || !(gram_->layout() == layout) ||
+      !gram_->space().SameAs(space)) {
+    return std::nullopt;
+  }
+  for (size_t i = 0; i < keys.size(); ++i) {
+    const Vec3* d = gram_->Direction(keys[i]);
+    if (d == nullptr || *d != directions[i]) return std::nullopt;
+  }
+  return gram_->Gram(keys);
 }
 
 Status MapStore::AddFile(const std::string& key, const std::string& path) {
@@ -141,6 +237,13 @@ Status MapStore::AddFile(const std::string& key, const std::string& path) {
 }
 
 void MapStore::Drop(const std::string& key) {
+  std::lock_guard<std::mutex> serial(gram_mu_);
+  if (gram_) {
+    const size_t before = gram_->bytes();
+    gram_->Drop(key);
+    std::lock_guard<std::mutex> lock(mu_);
+    bytes_ -= before - gram_->bytes();
+  }
   std::lock_guard<std::mutex> lock(mu_);
   auto it = held_.find(key);
   if (it == held_.end()) return;
@@ -189,7 +292,7 @@ Result<std::unique_ptr<MapBands>> MapStore::Bands(const std::vector<std::string>
   }
   if (keys.empty()) return MakeError(ErrorCode::kInvalidInput, "maps in memory", "no maps named");
   return std::unique_ptr<MapBands>(
-      std::make_unique<StoreBands>(std::move(keep), std::move(bgr), std::move(valid), width_, height_));
+      std::make_unique<StoreBands>(this, keys, std::move(keep), std::move(bgr), std::move(valid), width_, height_));
 }
 
 }  // namespace rig

@@ -14,6 +14,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -22,6 +23,7 @@
 #include "config/result.h"
 #include "process/io/exr_io.h"
 #include "process/model/model_stream.h"
+#include "process/model/selection_gram.h"
 
 namespace rig {
 
@@ -54,11 +56,39 @@ class MapStore {
   // Half the machine's physical memory: the default bound.
   static size_t DefaultMaxBytes();
 
+  // From now on, every map added is also turned into the selection rows' fit-space samples
+  // and multiplied with every map held, so that the harmonic fit's Gram matrix (order and λ)
+  // is ready when the last map arrives (selection_gram.h): `directions` per key (a key
+  // without one is held but not accumulated), the lamp's radiance, the fit space, the light
+  // frame (a near lamp is placed from the first map's height), the fit's band and selection
+  // rows. A fit whose samples would differ (another lamp radiance, e.g. from a reference
+  // patch, another space or directions) computes its own Gram matrix, as without a plan.
+  void PlanSelectionGram(std::map<std::string, Vec3> directions,
+                         std::array<double, 3> lamp_radiance_rgb, FitTransform transform,
+                         LightFrameConfig light_frame, int band_rows = StreamFitInput{}.band_rows,
+                         int selection_rows = StreamFitInput{}.selection_rows);
+  // The accumulated Gram matrix of `keys` (in order) when it was planned for this layout,
+  // sample space and directions; nullopt otherwise.
+  std::optional<GramSum> SelectionGram(const std::vector<std::string>& keys,
+                                       const std::vector<Vec3>& directions,
+                                       const SelectionLayout& layout, const SampleSpace& space) const;
+
  private:
   struct Held {
     cv::Mat bgr;    // CV_16FC3 or CV_32FC3
     cv::Mat valid;  // CV_8U 1 = valid, or empty (no flags)
   };
+  struct GramPlan {
+    std::map<std::string, Vec3> directions;
+    std::array<double, 3> lamp_radiance_rgb;
+    FitTransform transform;
+    LightFrameConfig light_frame;
+    int band_rows, selection_rows;
+  };
+  // Serialises Add, Drop and the accumulator (taken before mu_).
+  mutable std::mutex gram_mu_;
+  std::optional<GramPlan> plan_;
+  std::unique_ptr<SelectionGramAccumulator> gram_;  // made at the first map
   ExrPixelType type_;
   size_t planned_, max_bytes_;
   mutable std::mutex mu_;

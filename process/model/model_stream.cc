@@ -159,6 +159,15 @@ Result<std::vector<cv::Mat>> ReadPatches(MapBands& maps, const std::array<int, 4
   return crops;
 }
 
+Status MapBands::ReadSamples(int y0, int y1, const SampleSpace& space,
+                             const std::vector<Vec3>& directions, std::vector<cv::Mat>* bgr,
+                             std::vector<cv::Mat>* valid, SampleMatrix* samples,
+                             std::vector<uint8_t>* missing) {
+  RIG_TRY(Read(y0, y1, bgr, valid));
+  DivideByFalloff(space.lamp, directions, 0, y0, width(), height(), bgr);
+  return BuildSamples(*bgr, *valid, space.lamp_radiance_rgb, space.transform, samples, missing);
+}
+
 void DivideByFalloff(const NearLamp& lamp, const std::vector<Vec3>& dirs, int x0, int y0,
                      int width, int height, std::vector<cv::Mat>* bgr) {
   if (!lamp.near()) return;
@@ -193,8 +202,8 @@ namespace {
 // One band's coefficients in the file's pixel type, computed by a worker for the writer.
 struct FittedBand {
   int y0 = 0, rows = 0;
-  double read_s = 0, samples_s = 0, project_s = 0;  // this band's stages
-  cv::Mat store;        // k rows of BGR-interleaved band data
+  double samples_s = 0, project_s = 0;  // this band's stages
+  cv::Mat store;        // 3k rows: term t's B, G, R planes are rows 3t, 3t + 1, 3t + 2
   cv::Mat valid_store;  // rows x width, when the model has a "valid" channel
   MissingStats missing;
   Status status;
@@ -303,48 +312,19 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
                          ? 0
                          : (in.near_tile_px > 0 ? in.near_tile_px : lamp.TilePx(w, h, in.near_tile_max_deg));
 
-    // Pass 1: the Gram matrix of evenly spaced bands chooses order and λ.
-    Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(n),
-                                                 static_cast<Eigen::Index>(n));
-    double count = 0;
+    // Pass 1: the Gram matrix of evenly spaced bands chooses order and λ — accumulated
+    // already when the maps were kept in memory as they arrived (selection_gram.h), else
+    // computed now from the bands, in the same arithmetic.
     const int bands_total = (h + band - 1) / band;
-    const int bands_sel = std::clamp(in.selection_rows / band, 1, bands_total);
     const int threads = std::max(1, o.threads);
-    {
-      // Each band's Gram matrix on its own (by workers when the source allows), then summed
-      // in band order: the same sum, bit for bit, whatever the number of workers.
-      std::vector<Eigen::MatrixXd> grams(static_cast<size_t>(bands_sel));
-      std::vector<double> counts(static_cast<size_t>(bands_sel), 0.0);
-      std::vector<Status> status(static_cast<size_t>(bands_sel), Ok());
-      std::atomic<int> next_sel{0};
-      auto gram_worker = [&] {
-        std::vector<cv::Mat> bgr, valid;
-        SampleMatrix y;
-        std::vector<uint8_t> missing;
-        for (int s; (s = next_sel.fetch_add(1)) < bands_sel;) {
-          const int b = static_cast<int>(static_cast<long>(s) * bands_total / bands_sel);
-          const int y0 = b * band, y1 = std::min(h, y0 + band);
-          Status& st = status[static_cast<size_t>(s)];
-          try {
-            st = maps.Read(y0, y1, &bgr, &valid);
-            if (st.ok() && near) DivideByFalloff(lamp, in.directions, 0, y0, w, h, &bgr);
-            if (st.ok()) st = BuildSamples(bgr, valid, in.lamp_radiance_rgb, o.transform, &y, &missing);
-            if (st.ok()) grams[static_cast<size_t>(s)] = SampleGram(y, missing, 1, &counts[static_cast<size_t>(s)]);
-          } catch (const std::exception& e) {
-            st = MakeError(ErrorCode::kIo, out_path, "reading rows {}-{}: {}", y0, y1 - 1, e.what());
-          }
-        }
-      };
-      const int gram_workers = maps.concurrent() ? std::min(threads, bands_sel) : 1;
-      std::vector<std::thread> gram_pool;
-      for (int i = 1; i < gram_workers; ++i) gram_pool.emplace_back(gram_worker);
-      gram_worker();
-      for (auto& t : gram_pool) t.join();
-      for (int s = 0; s < bands_sel; ++s) {
-        RIG_TRY(status[static_cast<size_t>(s)]);
-        gram += grams[static_cast<size_t>(s)];
-        count += counts[static_cast<size_t>(s)];
-      }
+    const SelectionLayout layout{w, h, band, in.selection_rows};
+    const SampleSpace space{in.lamp_radiance_rgb, o.transform, lamp};
+    std::optional<GramSum> gram = maps.SelectionGram(in.directions, layout, space);
+    const bool gram_accumulated = gram.has_value();
+    if (!gram) {
+      auto computed = SelectionGramOfBands(maps, in.directions, layout, space, threads);
+      if (!computed.ok()) return computed.error().Within(out_path);
+      gram = std::move(computed).value();
     }
     StreamFitOutput out;
     out.width = w;
@@ -352,10 +332,10 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
     out.near_tile_px = tile;
     std::atomic<size_t> projectors{0};
     const double gram_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    RIG_ASSIGN_OR_RETURN(out.selection, SelectProjector(in.directions, weights, gram, count, o));
+    RIG_ASSIGN_OR_RETURN(out.selection, SelectProjector(in.directions, weights, gram->gram, gram->count, o));
     const double select_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() - gram_s;
-    double read_s = 0, samples_s = 0, project_s = 0, write_s = 0, wait_s = 0;
+    double samples_s = 0, project_s = 0, write_s = 0, wait_s = 0;
     const Projector& pr = out.selection.projector;
     for (const auto& r : out.selection.orders)
       if (r.order == out.selection.order) out.loo_rmse = r.loo_rmse;
@@ -412,12 +392,14 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
       SampleMatrix y, coeffs;
       std::vector<uint8_t> missing, valid_px;
       TileBuffers tiles;
+      cv::Mat plane[3];  // one term's B, G, R in float, before the conversion to half
     };
     auto fit_band = [&](int b, FittedBand* r, Buffers& buf) {
       r->y0 = b * band;
       const int y1 = std::min(h, r->y0 + band);
       r->rows = y1 - r->y0;
-      auto& [bgr, valid, y, coeffs, missing, valid_px, tiles] = buf;
+      auto& [bgr, valid, y, coeffs, missing, valid_px, tiles, plane] = buf;
+      auto pixels_of = [w](int rows) { return static_cast<size_t>(rows) * static_cast<size_t>(w); };
       auto t = std::chrono::steady_clock::now();
       auto lap = [&t] {
         const auto now = std::chrono::steady_clock::now();
@@ -426,15 +408,12 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
         return s;
       };
       try {
-        r->status = maps.Read(r->y0, y1, &bgr, &valid);
+        r->status = maps.ReadSamples(r->y0, y1, space, in.directions, &bgr, &valid, &y, &missing);
       } catch (const std::exception& e) {
         r->status = MakeError(ErrorCode::kIo, out_path, "reading rows {}-{}: {}", r->y0, y1 - 1,
                               e.what());
       }
-      r->read_s = lap();
-      if (r->status.ok() && near) DivideByFalloff(lamp, in.directions, 0, r->y0, w, h, &bgr);
-      if (r->status.ok()) r->status = BuildSamples(bgr, valid, in.lamp_radiance_rgb, o.transform, &y, &missing);
-      r->samples_s = lap();
+      r->samples_s = lap();  // read and made into samples, in one pass from memory
       if (!r->status.ok()) return;
       if (tile > 0) {
         size_t built = 0;
@@ -447,11 +426,26 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
         r->missing = ApplyProjector(pr, in.directions, weights, o.max_condition, y, missing,
                                     &coeffs, &valid_px);
       }
-      cv::Mat as_float(k, static_cast<int>(coeffs.cols()), CV_32F, coeffs.data());
-      if (type == ExrPixelType::kHalf) {
-        as_float.convertTo(r->store, CV_16F);
-      } else {
-        r->store = as_float.clone();
+      // Planar for the writer: term t's channel c (B, G, R) is row 3t + c of `store`, the
+      // band's pixels in order, in the file's pixel type. OpenEXR copies a slice of
+      // consecutive values several times faster than one strided through interleaved BGR
+      // (the writer was a third of the fit's CPU time at 24 MP), and the split and the
+      // conversion run here, on the workers, instead.
+      const int px = static_cast<int>(pixels_of(r->rows));
+      r->store.create(3 * k, px, type == ExrPixelType::kHalf ? CV_16F : CV_32F);
+      for (int t = 0; t < k; ++t) {
+        cv::Mat interleaved(1, px, CV_32FC3, coeffs.row(t).data());
+        if (type == ExrPixelType::kHalf) {
+          for (auto& m : plane) m.create(1, px, CV_32F);
+          cv::split(interleaved, plane);
+          for (int c = 0; c < 3; ++c) {
+            cv::Mat dst = r->store.row(3 * t + c);
+            plane[c].convertTo(dst, CV_16F);
+          }
+        } else {
+          cv::Mat planes[3] = {r->store.row(3 * t), r->store.row(3 * t + 1), r->store.row(3 * t + 2)};
+          cv::split(interleaved, planes);
+        }
       }
       if (with_valid) {
         cv::Mat v(r->rows, w, CV_8U, valid_px.data()), vf;
@@ -512,7 +506,6 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
           }
           const auto t_write = std::chrono::steady_clock::now();
           wait_s += std::chrono::duration<double>(t_write - t_wait).count();
-          read_s += r.read_s;
           samples_s += r.samples_s;
           project_s += r.project_s;
           task.Advance(1, fmt::format("rows {}-{}", r.y0, r.y0 + r.rows - 1));
@@ -520,13 +513,13 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
           out.missing.flagged += r.missing.flagged;
           out.missing.patterns += r.missing.patterns;
           Imf::FrameBuffer fb;
-          const size_t xs = 3 * elem, ys = xs * w;
+          const size_t ys = elem * w;
           for (int t = 0; t < k; ++t) {
-            char* row = reinterpret_cast<char*>(r.store.ptr(t)) -
-                        static_cast<ptrdiff_t>(r.y0) * static_cast<ptrdiff_t>(ys);
-            fb.insert(CoefficientChannelName(t, 'B'), Imf::Slice(pixel, row, xs, ys));
-            fb.insert(CoefficientChannelName(t, 'G'), Imf::Slice(pixel, row + elem, xs, ys));
-            fb.insert(CoefficientChannelName(t, 'R'), Imf::Slice(pixel, row + 2 * elem, xs, ys));
+            for (int c = 0; c < 3; ++c) {
+              char* plane = reinterpret_cast<char*>(r.store.ptr(3 * t + c)) -
+                            static_cast<ptrdiff_t>(r.y0) * static_cast<ptrdiff_t>(ys);
+              fb.insert(CoefficientChannelName(t, "BGR"[c]), Imf::Slice(pixel, plane, elem, ys));
+            }
           }
           if (with_valid) {
             fb.insert("valid", Imf::Slice(pixel,
@@ -584,11 +577,12 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
                            lamp.distance_mm, lamp.mm_per_px, tile, out.projectors);
     }
     Log("process")->info("band fit {}x{} poses={} order={} terms={} workers={} missing_pixels={} "
-                         "flagged={} time_s={:.2f} (gram {:.2f}, selection {:.2f}; summed over "
-                         "workers: read {:.2f}, samples {:.2f}, projection {:.2f}; writer: waited "
+                         "flagged={} time_s={:.2f} (gram {:.2f}{}, selection {:.2f}; summed over "
+                         "workers: read into samples {:.2f}, projection {:.2f}; writer: waited "
                          "{:.2f}, wrote {:.2f}, fsync {:.2f})",
                          w, h, n, out.selection.order, k, workers, out.missing.pixels_with_missing,
-                         out.missing.flagged, out.time_s, gram_s, select_s, read_s, samples_s,
+                         out.missing.flagged, out.time_s, gram_s,
+                         gram_accumulated ? " accumulated as the maps arrived" : "", select_s, samples_s,
                          project_s, wait_s, write_s, sync_s);
     return out;
   } catch (const std::exception& e) {

@@ -6,6 +6,7 @@
 
 #include <array>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -13,6 +14,7 @@
 #include "config/result.h"
 #include "process/io/exr_io.h"
 #include "process/model/fit.h"
+#include "process/model/selection_gram.h"
 
 namespace rig {
 
@@ -61,6 +63,21 @@ class MapBands {
   virtual bool concurrent() const = 0;
   // Throws only what OpenEXR throws (caught by the fit); other failures are a Status.
   virtual Status Read(int y0, int y1, std::vector<cv::Mat>* bgr, std::vector<cv::Mat>* valid) = 0;
+  // Rows [y0, y1) of every map as fit-space samples: Read, DivideByFalloff (a near lamp, the
+  // lamps commanded to `directions`) and BuildSamples, with `bgr` and `valid` as scratch. A
+  // source may make them in one pass; the values are the same bit for bit.
+  virtual Status ReadSamples(int y0, int y1, const SampleSpace& space,
+                             const std::vector<Vec3>& directions, std::vector<cv::Mat>* bgr,
+                             std::vector<cv::Mat>* valid, SampleMatrix* samples,
+                             std::vector<uint8_t>* missing);
+  // The selection rows' Gram matrix when the source accumulated it already (maps held in
+  // memory as they arrived, for this layout, sample space and these directions), equal bit
+  // for bit to SelectionGramOfBands of the same maps; nullopt: the fit computes it.
+  virtual std::optional<GramSum> SelectionGram(const std::vector<Vec3>& /*directions*/,
+                                               const SelectionLayout& /*layout*/,
+                                               const SampleSpace& /*space*/) const {
+    return std::nullopt;
+  }
 };
 
 // The maps of `paths` read from their EXR files (R, G, B; optional "flags", 0 = valid); all

@@ -49,7 +49,10 @@ int RunProcess(int argc, char** argv) {
   // Every map (merged now or up to date) kept in memory for the model: no map read back.
   MapStore maps(config.process.hdr_pixel_type == "half" ? ExrPixelType::kHalf : ExrPixelType::kFloat,
                 jobs->size(), MapStore::DefaultMaxBytes());
-  if (!hdr_only) stage.set_map_store(&maps);
+  if (!hdr_only) {
+    PlanSessionGram(maps, config);
+    stage.set_map_store(&maps);
+  }
   stage.set_skip_up_to_date(!force);
   std::optional<ProgressTask> task(std::in_place, "radiance maps", static_cast<int64_t>(jobs->size()));
   stage.set_on_pose([&](const std::string& pose) { task->Advance(1, "pose " + pose); });

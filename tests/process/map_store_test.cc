@@ -18,6 +18,7 @@
 #include "process/io/exr_io.h"
 #include "process/model/fit.h"
 #include "process/model/model_stream.h"
+#include "process/model/selection_gram.h"
 
 namespace rig {
 namespace {
@@ -169,6 +170,96 @@ TEST_P(MapStoreTest, AMapReadBackFromItsFileIsHeldAsTheMergedOne) {
   // The map without flags reads as valid everywhere; a flagged pixel as invalid.
   EXPECT_EQ(cv::countNonZero(va[2]), kWidth * kHeight);
   EXPECT_LT(cv::countNonZero(va[0]), kWidth * kHeight);
+}
+
+// The selection's Gram matrix accumulated map by map as the maps arrive (the store planned for
+// the fit) against the same matrix from every map at once, and against the plain sum over the
+// complete pixels (SampleGram of each band, as the fit computed it before), far and near lamp.
+TEST_P(MapStoreTest, TheGramAccumulatedAsTheMapsArriveIsTheBatchGramBitForBit) {
+  for (const double distance : {0.0, 300.0}) {
+    SCOPED_TRACE(distance > 0 ? "near lamp" : "far lamp");
+    LightFrameConfig frame;
+    frame.lamp_distance_mm = distance;
+    frame.field_height_mm = distance > 0 ? 100 : 0;
+    FitTransform transform;
+    transform.space = FitSpace::kLog;
+    const std::array<double, 3> e = {1.5, 1.2, 0.9};  // as Capture sets it
+    std::map<std::string, Vec3> planned;
+    const auto grid = Grid();
+    for (size_t i = 0; i < grid.size(); ++i)
+      planned["p" + std::to_string(i)] = LightDirection(grid[i].h, grid[i].v);
+    MapStore store(GetParam(), grid.size(), size_t{1} << 30);
+    store.PlanSelectionGram(planned, e, transform, frame, 8, 24);
+    StreamFitInput in;
+    std::vector<std::string> keys;
+    Capture(&store, &in, &keys);
+    in.near_lamp = NearLamp::FromLightFrame(frame, kHeight);
+    // Replaced, dropped and read back from its file: arrival order and repeats do not matter.
+    ASSERT_TRUE(store.AddFile(keys[3], in.paths[3]).ok());
+    store.Drop(keys[5]);
+    ASSERT_TRUE(store.AddFile(keys[5], in.paths[5]).ok());
+
+    const SelectionLayout layout{kWidth, kHeight, in.band_rows, in.selection_rows};
+    const SampleSpace space{in.lamp_radiance_rgb, transform, in.near_lamp};
+    auto accumulated = store.SelectionGram(keys, in.directions, layout, space);
+    ASSERT_TRUE(accumulated.has_value());
+    auto files = OpenMapFiles(in.paths);
+    ASSERT_TRUE(files.ok());
+    auto batch = SelectionGramOfBands(**files, in.directions, layout, space, 2);
+    ASSERT_TRUE(batch.ok()) << batch.error().ToString();
+    EXPECT_EQ(accumulated->count, batch->count);
+    ASSERT_EQ(accumulated->gram.size(), batch->gram.size());
+    EXPECT_EQ(std::memcmp(accumulated->gram.data(), batch->gram.data(),
+                          sizeof(double) * static_cast<size_t>(batch->gram.size())),
+              0);
+
+    // The matrix it stands for: Σ over the complete pixels of every selection band.
+    Eigen::MatrixXd plain = Eigen::MatrixXd::Zero(batch->gram.rows(), batch->gram.cols());
+    double count = 0;
+    size_t incomplete = 0;
+    for (const auto& [y0, y1] : layout.Bands()) {
+      std::vector<cv::Mat> bgr, valid;
+      ASSERT_TRUE((*files)->Read(y0, y1, &bgr, &valid).ok());
+      DivideByFalloff(in.near_lamp, in.directions, 0, y0, kWidth, kHeight, &bgr);
+      SampleMatrix y;
+      std::vector<uint8_t> missing;
+      ASSERT_TRUE(BuildSamples(bgr, valid, e, transform, &y, &missing).ok());
+      double c = 0;
+      plain += SampleGram(y, missing, 1, &c);
+      count += c;
+      incomplete += static_cast<size_t>(3 * (y1 - y0) * kWidth) - static_cast<size_t>(c);
+    }
+    EXPECT_GT(incomplete, 30u);  // the correction for pixels some map lacks was exercised
+    EXPECT_EQ(batch->count, count);
+    EXPECT_LT((batch->gram - plain).cwiseAbs().maxCoeff(), 1e-12 * plain.cwiseAbs().maxCoeff());
+
+    // Planned for another lamp radiance (e.g. one a reference patch gives): not used.
+    SampleSpace other = space;
+    other.lamp_radiance_rgb[1] *= 1.01;
+    EXPECT_FALSE(store.SelectionGram(keys, in.directions, layout, other).has_value());
+    EXPECT_FALSE(store.SelectionGram(keys, in.directions, SelectionLayout{kWidth, kHeight, 8, 32}, space)
+                     .has_value());
+
+    // The model from memory (its Gram accumulated) equals the model from the files.
+    FitOptions o;
+    o.basis = BasisKind::kHsh;
+    o.transform = transform;
+    auto from_files = FitModelStreaming(in, o, (dir_ / "files.exr").string(), ExrPixelType::kFloat);
+    ASSERT_TRUE(from_files.ok()) << from_files.error().ToString();
+    o.threads = 2;
+    auto bands = store.Bands(keys);
+    ASSERT_TRUE(bands.ok());
+    ASSERT_TRUE((*bands)->SelectionGram(in.directions, layout, space).has_value());
+    auto memory = FitModelFromBands(**bands, in, o, (dir_ / "memory.exr").string(), ExrPixelType::kFloat);
+    ASSERT_TRUE(memory.ok()) << memory.error().ToString();
+    EXPECT_EQ(memory->selection.order, from_files->selection.order);
+    EXPECT_EQ(memory->selection.projector.lambda, from_files->selection.projector.lambda);
+    EXPECT_EQ(memory->loo_rmse, from_files->loo_rmse);
+    const ExrImage a = Read(dir_ / "files.exr"), b = Read(dir_ / "memory.exr");
+    ASSERT_EQ(a.channel_names, b.channel_names);
+    for (size_t c = 0; c < a.channels.size(); ++c)
+      EXPECT_EQ(cv::norm(a.channels[c], b.channels[c], cv::NORM_INF), 0.0) << a.channel_names[c];
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(HalfAndFloat, MapStoreTest,
