@@ -1,12 +1,15 @@
 // A near lamp through the whole session: `rig capture --dry-run` of a simulated lamp 300 mm
 // from a 100 mm field, with the lamp's distance in [light_frame], fits its model with the
 // near-lamp correction (fall-off per pixel, directions per tile), and that model relights the
-// scene closer to the simulator's far-lamp truth than the same maps fitted as a far lamp.
+// scene closer to the simulator's far-lamp truth than the same maps fitted as a far lamp; with
+// the simulator's plane depth in [light_frame] surface_depth_mm, closer still.
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "capture/session/session_store.h"
 #include "process/io/exr_io.h"
@@ -91,11 +94,54 @@ TEST(NearLampSession, TheSessionFitCorrectsANearLampFromItsLightFrame) {
 
   const double near_error = RelitError(s / "model" / "model.exr", session->config());
   const double far_error = RelitError(far / "model" / "model.exr", session->config());
-  std::printf("session (camera, JPEG, merge), 96x72: relit relative RMS far-lamp fit %.4f, "
-              "near-lamp fit (z = 0) %.4f\n", far_error, near_error);
-  // The session knows only the plane through the centre of rotation, and the simulator's
-  // plane lies ~50 mm behind it: the correction is partial (docs/lights.md).
+
+  // The same dry run with the simulator's plane stated: [light_frame] surface_depth_mm, the
+  // plane's true z at the image centre (the truth's scene.json says it too).
+  auto scene = SimScene::Create(session->config().sim);
+  ASSERT_TRUE(scene.ok()) << scene.error().ToString();
+  const double z_true = scene->plane_depth_mm();
+  ASSERT_LT(z_true, -1);  // behind the centre of rotation
+  const std::string depth_cfg = testing::WriteSimConfig(
+      dir,
+      "[sim]\nwidth = 96\nheight = 72\nscene = \"matte\"\nlamp_distance_mm = 300\n"
+      "field_height_mm = 100\n[light_frame]\nlamp_distance_mm = 300\nfield_height_mm = 100\n" +
+          fmt::format("surface_depth_mm = {}\n", z_true));
+  const fs::path sd = fs::path(dir) / "SD";
+  r = RunRig("capture --config " + depth_cfg + " --out " + sd.string() + " --dry-run --no-progress");
+  ASSERT_EQ(r.status, 0) << r.output;
+  auto depth_session = Session::OpenExisting(sd);
+  ASSERT_TRUE(depth_session.ok()) << depth_session.error().ToString();
+  EXPECT_EQ(depth_session->config().light_frame.surface_depth_mm, z_true);
+  auto depth_header = ReadExr((sd / "model" / "model.exr").string());
+  ASSERT_TRUE(depth_header.ok()) << depth_header.error().ToString();
+  ASSERT_TRUE(depth_header->attributes.count("near_lamp"));
+  EXPECT_NE(depth_header->attributes.at("near_lamp").find(fmt::format("surface at z = {:g} mm", z_true)),
+            std::string::npos) << depth_header->attributes.at("near_lamp");
+  const double depth_error = RelitError(sd / "model" / "model.exr", session->config());
+  const auto truth = nlohmann::json::parse(testing::ReadText((sd / "truth" / "scene.json").string()));
+  ASSERT_TRUE(truth.contains("surface_depth_mm"));
+  EXPECT_EQ(truth["surface_depth_mm"].get<double>(), z_true);
+
+  // The floor through the camera: the simulator's lamp far, fitted as a far lamp.
+  const std::string far_cfg = testing::WriteSimConfig(
+      dir, "[sim]\nwidth = 96\nheight = 72\nscene = \"matte\"\nfield_height_mm = 100\n");
+  const fs::path sf = fs::path(dir) / "SF";
+  r = RunRig("capture --config " + far_cfg + " --out " + sf.string() + " --dry-run --no-progress");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const double floor_error = RelitError(sf / "model" / "model.exr", session->config());
+
+  std::printf("session (camera, JPEG, merge), 96x72: relit relative RMS: the simulator's lamp "
+              "far %.4f; lamp 300 mm: far-lamp fit %.4f, near-lamp fit (z = 0) %.4f, near-lamp "
+              "fit (surface_depth_mm = %g) %.4f\n",
+              floor_error, far_error, near_error, z_true, depth_error);
+  // With the surface through the centre of rotation, and the simulator's plane ~50 mm behind
+  // it, the correction is partial (docs/lights.md).
   EXPECT_LT(near_error, 0.85 * far_error);
+  // The plane's true depth removes part of what the near lamp still costs above the camera's
+  // floor (the sphere standing in front of the plane keeps the rest: a plane is one depth for
+  // the whole field).
+  EXPECT_LT(floor_error, near_error);
+  EXPECT_LT(depth_error - floor_error, 0.85 * (near_error - floor_error));
   fs::remove_all(dir);
 }
 
