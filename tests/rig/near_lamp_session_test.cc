@@ -5,12 +5,14 @@
 // the simulator's plane depth in [light_frame] surface_depth_mm, closer still.
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "capture/plan/pose.h"
 #include "capture/session/session_store.h"
 #include "process/io/exr_io.h"
 #include "process/model/model.h"
@@ -142,6 +144,80 @@ TEST(NearLampSession, TheSessionFitCorrectsANearLampFromItsLightFrame) {
   // the whole field).
   EXPECT_LT(floor_error, near_error);
   EXPECT_LT(depth_error - floor_error, 0.85 * (near_error - floor_error));
+  fs::remove_all(dir);
+}
+
+// The largest difference between two models' coefficients (infinity: not comparable).
+double CoefficientDifference(const fs::path& a, const fs::path& b) {
+  auto ma = LoadModel(a.string());
+  auto mb = LoadModel(b.string());
+  EXPECT_TRUE(ma.ok() && mb.ok());
+  if (!ma.ok() || !mb.ok() || ma->coefficients().size() != mb->coefficients().size())
+    return std::numeric_limits<double>::infinity();
+  double worst = 0;
+  for (size_t t = 0; t < ma->coefficients().size(); ++t)
+    worst = std::max(worst, cv::norm(ma->coefficients()[t], mb->coefficients()[t], cv::NORM_INF));
+  return worst;
+}
+
+// `rig fit --list` of a near-lamp session's maps with its configuration fits as the session
+// does (fall-off, tiles: the same model, in memory or streamed), and better than the far
+// assumption on the same maps.
+TEST(NearLampSession, AListFitOfTheMapsIsTheSessionsFit) {
+  const std::string dir = testing::FreshTempDir("near_lamp_list");
+  const std::string cfg = testing::WriteSimConfig(
+      dir,
+      "[sim]\nwidth = 96\nheight = 72\nscene = \"matte\"\nlamp_distance_mm = 300\n"
+      "field_height_mm = 100\n[light_frame]\nlamp_distance_mm = 300\nfield_height_mm = 100\n"
+      "surface_depth_mm = -50\n");
+  const fs::path s = fs::path(dir) / "S";
+  auto r = RunRig("capture --config " + cfg + " --out " + s.string() + " --dry-run --no-progress");
+  ASSERT_EQ(r.status, 0) << r.output;
+  auto session = Session::OpenExisting(s);
+  ASSERT_TRUE(session.ok()) << session.error().ToString();
+  const Config& config = session->config();
+  {
+    std::ofstream list(fs::path(dir) / "maps.txt");
+    for (const Pose& p : PlanGrid(config.grid))
+      list << (s / "hdr" / (p.Name() + ".exr")).string() << " " << p.h_deg << " " << p.v_deg << "\n";
+  }
+  const std::string list = (fs::path(dir) / "maps.txt").string();
+  const std::string session_toml = (s / "session.toml").string();
+  const fs::path in_memory = fs::path(dir) / "list.exr", streamed = fs::path(dir) / "streamed.exr";
+  r = RunRig("fit --list " + list + " --config " + session_toml + " --out " + in_memory.string() +
+             " --report " + dir + "/report.md");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("near lamp 300 mm, surface at z = -50 mm"), std::string::npos) << r.output;
+  EXPECT_NE(testing::ReadText(dir + "/report.md").find("| order |"), std::string::npos);
+  r = RunRig("fit --list " + list + " --config " + session_toml + " --out " + streamed.string() +
+             " --stream-above-mb 0");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("(streamed)"), std::string::npos) << r.output;
+  auto header = ReadExr(in_memory.string());
+  ASSERT_TRUE(header.ok()) << header.error().ToString();
+  ASSERT_TRUE(header->attributes.count("near_lamp"));
+  EXPECT_EQ(header->attributes.at("near_lamp"),
+            ReadExr((s / "model" / "model.exr").string())->attributes.at("near_lamp"));
+  // The same model as the session's, and in memory as streamed.
+  EXPECT_EQ(CoefficientDifference(in_memory, streamed), 0.0);
+  EXPECT_EQ(CoefficientDifference(in_memory, s / "model" / "model.exr"), 0.0);
+
+  // The far assumption on the same maps: a configuration without the lamp's distance.
+  Config far_config = config;
+  far_config.light_frame.lamp_distance_mm = 0;
+  far_config.light_frame.surface_depth_mm = 0;
+  {
+    std::ofstream f(fs::path(dir) / "far.toml");
+    f << ToToml(far_config);
+  }
+  const fs::path far = fs::path(dir) / "far.exr";
+  r = RunRig("fit --list " + list + " --config " + dir + "/far.toml --out " + far.string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(r.output.find("near lamp"), std::string::npos) << r.output;
+  const double near_error = RelitError(in_memory, config), far_error = RelitError(far, config);
+  std::printf("rig fit --list of the session's maps, 96x72: relit relative RMS far assumption "
+              "%.4f, near lamp (surface_depth_mm = -50) %.4f\n", far_error, near_error);
+  EXPECT_LT(near_error, 0.85 * far_error);
   fs::remove_all(dir);
 }
 
