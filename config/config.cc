@@ -183,6 +183,8 @@ class Reader {
     v = out;
   }
   // The model order: an integer, or "auto" (stored as -1).
+  // A number whose value `absent` the writer leaves out (read like any other).
+  void OptionalField(const char* key, double& v, Range r, double) { Field(key, v, r); }
   void OrderField(const char* key, int& v, Range r) {
     const toml::node* n = Find(key, false);
     if (!n) return;
@@ -313,6 +315,9 @@ class Writer {
     }
     Put(key, a);
   }
+  void OptionalField(const char* key, double& v, Range, double absent) {
+    if (v != absent) Put(key, v);
+  }
   void OrderField(const char* key, int& v, Range) {
     if (v < 0) Put(key, std::string("auto"));
     else Put(key, int64_t{v});
@@ -439,6 +444,9 @@ void VisitConfig(Config& c, V& v) {
     v.Field("v_sign", f.v_sign, Range{-1, 1});
     v.Field("lamp_distance_mm", f.lamp_distance_mm, Range{0, 1e7});
     v.Field("field_height_mm", f.field_height_mm, Range{0, 1e7});
+    // Written only when set: the resolved text (and digest) of a session without it is
+    // what it was before the key existed, so such sessions still resume.
+    v.OptionalField("surface_depth_mm", f.surface_depth_mm, Range{-1e7, 1e7}, 0.0);
   });
   section("process", false, [&] {
     auto& p = c.process;
@@ -597,6 +605,20 @@ void CheckConsistency(const Config& c, Reader& r) {
                fmt::format("{:g} mm is no farther than the field is tall ({:g} mm): the lamp "
                            "would sit inside the field it lights",
                            c.light_frame.lamp_distance_mm, c.light_frame.field_height_mm));
+  // The surface off the centre of rotation: the lamp must still lie outside the field and in
+  // front of the surface, farther from the surface's point at the image centre than the field
+  // is tall: lamp_distance_mm > field_height_mm + |surface_depth_mm| (the lamp, anywhere on its
+  // sphere around the centre, is then at least that far from the surface's centre point).
+  else if (c.light_frame.lamp_distance_mm > 0 && c.light_frame.field_height_mm > 0 &&
+           c.light_frame.lamp_distance_mm <=
+               c.light_frame.field_height_mm + std::abs(c.light_frame.surface_depth_mm))
+    r.ReportAt("light_frame.surface_depth_mm",
+               fmt::format("a surface at z = {:g} mm leaves the lamp {:g} mm from the arm's "
+                           "centre no farther from it than the field is tall ({:g} mm): "
+                           "|surface_depth_mm| + field_height_mm must stay below "
+                           "lamp_distance_mm (z is mm towards the camera from the centre)",
+                           c.light_frame.surface_depth_mm, c.light_frame.lamp_distance_mm,
+                           c.light_frame.field_height_mm));
   if (c.sim.camera.shutter_max_s <= c.sim.camera.shutter_min_s)
     r.ReportAt("sim.camera.shutter_max_s", "must exceed shutter_min_s");
 }

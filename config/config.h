@@ -114,6 +114,11 @@ struct LightFrameConfig {
   // camera's field at the object (both mm), which places every pixel relative to the lamp.
   double lamp_distance_mm = 0;
   double field_height_mm = 0;
+  // The object's surface, taken as a plane facing the camera: its z (mm, along the camera
+  // axis, positive towards the camera, as NearLamp::plane_z_mm and depth_mm) relative to the
+  // arm's centre of rotation; 0: the surface through the centre. Negative when the object
+  // lies behind the centre (the simulator's plane: -field_height_mm / 2). A near lamp only.
+  double surface_depth_mm = 0;
 };
 
 struct ProcessConfig {

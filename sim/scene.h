@@ -101,6 +101,10 @@ class SimScene {
   // The near lamp's distance in scene units (0: a far lamp) and mm per scene unit.
   double lamp_distance() const { return lamp_distance_; }
   double mm_per_unit() const { return mm_per_unit_; }
+  // The plane's z (mm, towards the camera from the origin, the arm's centre of rotation) at
+  // the image centre: what [light_frame] surface_depth_mm states of this scene (-0.5 x
+  // sim.field_height_mm; the plane is tilted and the spheres stand in front of it).
+  double plane_depth_mm() const { return plane_z0_ * mm_per_unit_; }
   // The surface point pixel (i, j) sees (object frame, scene units).
   Vec3 SurfacePoint(int i, int j) const;
   // The direction pixel (i, j) sees a lamp commanded to `light_dir` in, and the fall-off

@@ -102,6 +102,8 @@ Status WriteTruth(const std::string& truth_dir, const SimConfig& sim, const SimS
       {"files",
        {{"response", "response.csv: level,g_B,g_G,g_R; g = ln(radiance * seconds)"},
         {"radiance", "radiance/<pose>.exr: exact scene radiance, float R, G, B"}}}};
+  // A near lamp: the [light_frame] surface_depth_mm that states where the scene's plane lies.
+  if (scene.lamp_distance() > 0) j["surface_depth_mm"] = scene.plane_depth_mm();
   return WriteFileAtomic(fs::path(truth_dir) / "scene.json", j.dump(2) + "\n");
 }
 

@@ -653,6 +653,17 @@ Result<LampEstimate> EstimateLamp(const SphereCalibration& cal, int width, int h
   return fitted;
 }
 
+std::vector<double> SurfaceUnderSpheres(const LampEstimate& lamp,
+                                        const std::vector<SphereCircle>& spheres,
+                                        double field_height_mm, int height) {
+  std::vector<double> out;
+  if (height <= 0 || field_height_mm <= 0) return out;
+  const double mm_per_px = field_height_mm / height;
+  for (size_t j = 0; j < spheres.size() && j < lamp.depth_mm.size(); ++j)
+    out.push_back(lamp.depth_mm[j] - spheres[j].r * mm_per_px);
+  return out;
+}
+
 Result<SphereCalibration> CalibrateFromSpheres(const LightStack& stack,
                                                const std::vector<SphereCircle>& spheres,
                                                const CameraModel& camera,

@@ -125,6 +125,15 @@ struct SphereCalibration;
 Result<LampEstimate> EstimateLamp(const SphereCalibration& cal, int width, int height,
                                   const CameraModel& camera, const SphereField& field);
 
+// Where the object's surface would lie under spheres resting on it (the plane facing the
+// camera): per sphere, its centre's z (`lamp.depth_mm`) minus its radius in mm (field height
+// over image height per px). The sphere geometry says no more: spheres on posts or floating
+// (the simulator's) give no surface depth; spheres assumed resting (no depth given or fitted)
+// give z = 0 by construction.
+std::vector<double> SurfaceUnderSpheres(const LampEstimate& lamp,
+                                        const std::vector<SphereCircle>& spheres,
+                                        double field_height_mm, int height);
+
 struct SphereCalibration {
   std::vector<SphereCircle> spheres;
   // per image: the direction (the spheres' mean; a near lamp: from the arm's centre), and every

@@ -26,8 +26,7 @@ Vec3 NearLamp::At(int i, int j, int width, int height, const Vec3& dir, double* 
     *falloff = 1;
     return dir;
   }
-  const double z = depth_mm.empty() ? 0.0 : depth_mm.at<float>(j, i);
-  return AtPosition(i + 0.5, j + 0.5, z, width, height, dir, falloff);
+  return AtPosition(i + 0.5, j + 0.5, DepthAt(i, j), width, height, dir, falloff);
 }
 
 Vec3 NearLamp::AtPosition(double u, double v, double z, int width, int height, const Vec3& dir,
@@ -47,7 +46,7 @@ Vec3 NearLamp::AtPosition(double u, double v, double z, int width, int height, c
 double NearLamp::InverseFalloff(int i, int j, int width, int height, const Vec3& dir) const {
   if (!near()) return 1;
   const double x = (i + 0.5 - width / 2.0) * mm_per_px, y = (height / 2.0 - j - 0.5) * mm_per_px;
-  const double z = depth_mm.empty() ? 0.0 : depth_mm.at<float>(j, i);
+  const double z = DepthAt(i, j);
   const double dx = distance_mm * dir[0] - x, dy = distance_mm * dir[1] - y,
                dz = distance_mm * dir[2] - z;
   return (dx * dx + dy * dy + dz * dz) / (distance_mm * distance_mm);
@@ -55,7 +54,7 @@ double NearLamp::InverseFalloff(int i, int j, int width, int height, const Vec3&
 
 int NearLamp::TilePx(int width, int height, double max_deg) const {
   if (!near()) return std::max(width, height);
-  double zmax = 0;
+  double zmax = std::abs(plane_z_mm);
   if (!depth_mm.empty()) {
     double lo = 0, hi = 0;
     cv::minMaxLoc(depth_mm, &lo, &hi);
@@ -76,14 +75,15 @@ NearLamp NearLamp::FromLightFrame(const LightFrameConfig& frame, int height) {
   if (frame.lamp_distance_mm > 0 && frame.field_height_mm > 0 && height > 0) {
     lamp.distance_mm = frame.lamp_distance_mm;
     lamp.mm_per_px = frame.field_height_mm / height;
+    lamp.plane_z_mm = frame.surface_depth_mm;
   }
   return lamp;
 }
 
 bool NearLamp::SameSamplingAs(const NearLamp& o) const {
   if (!near() && !o.near()) return true;
-  return distance_mm == o.distance_mm && mm_per_px == o.mm_per_px && depth_mm.empty() &&
-         o.depth_mm.empty();
+  return distance_mm == o.distance_mm && mm_per_px == o.mm_per_px && plane_z_mm == o.plane_z_mm &&
+         depth_mm.empty() && o.depth_mm.empty();
 }
 
 }  // namespace rig

@@ -25,14 +25,23 @@ Vec3 LightDirection(double h_deg, double v_deg, const LightFrameConfig& frame = 
 void DirectionToAngles(const Vec3& dir, double* h_deg, double* v_deg);
 
 // A lamp at a finite distance. Pixel (i, j) of a W x H image lies at
-// ((i + 0.5 - W/2), (H/2 - j - 0.5)) * mm_per_px on the plane z = 0 through the arm's centre
-// of rotation (or at a given depth), the lamp commanded to `dir` at distance_mm * dir.
+// ((i + 0.5 - W/2), (H/2 - j - 0.5)) * mm_per_px on the plane z = plane_z_mm (0: through the
+// arm's centre of rotation), or at a given depth per pixel, the lamp commanded to `dir` at
+// distance_mm * dir.
 struct NearLamp {
   double distance_mm = 0;  // 0: a far lamp (one direction for every pixel)
   double mm_per_px = 0;
+  // The surface's plane when there is no depth map: z (mm, along the camera axis, positive
+  // towards the camera) relative to the arm's centre of rotation ([light_frame]
+  // surface_depth_mm); 0: the plane through the centre.
+  double plane_z_mm = 0;
   // CV_32FC1: every pixel's surface depth z (mm, towards the camera) relative to the arm's
-  // centre of rotation; empty: the plane z = 0 (the surface through the centre of rotation).
+  // centre of rotation; empty: the plane z = plane_z_mm.
   cv::Mat depth_mm;
+  // Pixel (i, j)'s surface depth: the depth map's, else the plane's.
+  double DepthAt(int i, int j) const {
+    return depth_mm.empty() ? plane_z_mm : depth_mm.at<float>(j, i);
+  }
   bool near() const { return distance_mm > 0 && mm_per_px > 0; }
   // Direction from pixel (i, j) of a W x H image to the lamp commanded to `dir`, and the
   // fall-off (distance / d)^2.
@@ -45,12 +54,13 @@ struct NearLamp {
   double InverseFalloff(int i, int j, int width, int height, const Vec3& dir) const;
   // The largest square tile (pixels, at least 1) inside which every pixel's direction stays
   // within max_deg of the direction at the tile's centre, for every lamp of a W x H image on
-  // the plane z = 0 (with a depth map: its largest |z| is added to the field's radius):
+  // the plane z = plane_z_mm (its |z| is added to the field's radius; with a depth map, the
+  // map's largest |z|):
   // moving the surface point by s changes the direction by at most s / |lamp - point|, and
   // |lamp - point| >= distance - the farthest point's distance from the centre of rotation.
   int TilePx(int width, int height, double max_deg) const;
-  // From a configuration's [light_frame] (lamp_distance_mm, field_height_mm) for images of
-  // `height` rows; far when either is 0.
+  // From a configuration's [light_frame] (lamp_distance_mm, field_height_mm,
+  // surface_depth_mm) for images of `height` rows; far when either of the first two is 0.
   static NearLamp FromLightFrame(const LightFrameConfig& frame, int height);
   // Whether samples divided by this lamp's fall-off equal those divided by `o`'s, bit for bit
   // (two far lamps always; a lamp with a depth map is never taken as equal to another).

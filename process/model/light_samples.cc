@@ -2,6 +2,10 @@
 #include "process/model/light_samples.h"
 
 #include <algorithm>
+#include <array>
+#include <cmath>
+
+#include "process/model/fit.h"
 
 namespace rig {
 
@@ -17,6 +21,38 @@ size_t MaskLdrSamples(LightSamples* samples, const LdrMaskThresholds& thresholds
     }
   }
   return missing;
+}
+
+size_t DivideSamplesByFalloff(const NearLamp& lamp, bool srgb, LightSamples* samples,
+                              const LdrMaskThresholds& thresholds) {
+  if (!lamp.near() || samples->values.empty()) return 0;
+  if (samples->usable.empty()) MaskLdrSamples(samples, thresholds);
+  std::array<float, 256> linear;
+  for (int v = 0; v < 256; ++v) linear[v] = srgb ? SrgbDecode(v / 255.0f) : v / 255.0f;
+  const int lights = samples->lights();
+  const size_t pixels = samples->pixels();
+  size_t clipped = 0;
+  for (size_t p = 0; p < pixels; ++p) {
+    const int i = static_cast<int>(p % static_cast<size_t>(samples->width));
+    const int j = static_cast<int>(p / static_cast<size_t>(samples->width));
+    for (int l = 0; l < lights; ++l) {
+      const float f = static_cast<float>(
+          lamp.InverseFalloff(i, j, samples->width, samples->height, samples->directions[l]));
+      const size_t at = (p * static_cast<size_t>(lights) + static_cast<size_t>(l)) * 3;
+      for (int c = 0; c < 3; ++c) {
+        const float x = linear[samples->values[at + c]] * f;
+        const float code = 255.0f * (srgb ? SrgbEncode(x) : x);
+        if (code >= 254.5f) {
+          if (samples->usable[at + c]) ++clipped;
+          samples->usable[at + c] = 0;
+          samples->values[at + c] = 255;
+        } else {
+          samples->values[at + c] = static_cast<uint8_t>(std::lround(std::max(0.0f, code)));
+        }
+      }
+    }
+  }
+  return clipped;
 }
 
 LightSamples WithoutLight(const LightSamples& samples, int held_out) {

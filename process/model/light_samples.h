@@ -44,6 +44,15 @@ struct LightSamples {
 // sample-channels were marked missing.
 size_t MaskLdrSamples(LightSamples* samples, const LdrMaskThresholds& thresholds = {});
 
+// A near lamp (docs/lights.md "Near lamps"): every sample divided by its pixel's fall-off
+// (NearLamp::InverseFalloff, the block taken as the whole width x height image and the sample's
+// lamp direction), in linear units — the codes sRGB-decoded when `srgb`, else taken as linear
+// — then encoded and rounded back to codes. A sample pushed to 255 or beyond is clipped there
+// and marked missing (`usable` filled by MaskLdrSamples first when empty); returns how many.
+// A far lamp leaves the samples unchanged.
+size_t DivideSamplesByFalloff(const NearLamp& lamp, bool srgb, LightSamples* samples,
+                              const LdrMaskThresholds& thresholds = {});
+
 // The same samples without light `held_out` (its directions, values and mask removed).
 LightSamples WithoutLight(const LightSamples& samples, int held_out);
 

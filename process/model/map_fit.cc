@@ -4,10 +4,14 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <memory>
 #include <sstream>
 
 #include <fmt/format.h>
 
+#include "process/model/light_direction.h"
+#include "process/model/map_store.h"
 #include "process/model/model_stream.h"
 #include "config/console.h"
 
@@ -72,6 +76,74 @@ Status LoadRadiance(const std::string& path, cv::Mat* bgr, cv::Mat* valid) {
   return Ok();
 }
 
+// A near lamp ([light_frame] lamp_distance_mm > 0): the session's fit, FitModelFromBands with
+// the same StreamFitInput (fall-off per pixel, directions per tile, the reference patch
+// divided by its fall-off), from the maps held in memory when they fit under the bound, else
+// from the files (the same model, bit for bit).
+Result<MapFitResult> FitNearLampMaps(const MapFitRequest& req, const FitInput& input,
+                                     const std::vector<std::string>& paths, bool in_memory) {
+  const Config& config = req.config;
+  StreamFitInput sin;
+  sin.paths = paths;
+  sin.directions = input.directions;
+  sin.weights = input.weights;
+  sin.lamp_radiance_rgb = input.lamp_radiance_rgb;
+  sin.light_frame = input.light_frame;
+  if (auto c = ParseExrCompression(config.process.model_compression); c.ok()) sin.compression = *c;
+  std::unique_ptr<MapStore> store;
+  std::unique_ptr<MapBands> bands;
+  if (in_memory) {
+    store = std::make_unique<MapStore>(ExrPixelType::kFloat, paths.size(),
+                                       std::numeric_limits<size_t>::max());
+    std::vector<std::string> keys;
+    ProgressTask reading("reading radiance maps", static_cast<int64_t>(paths.size()));
+    for (size_t i = 0; i < paths.size(); ++i) {
+      reading.Advance(1);
+      keys.push_back(std::to_string(i));
+      RIG_TRY(store->AddFile(keys.back(), paths[i]));
+    }
+    RIG_ASSIGN_OR_RETURN(bands, store->Bands(keys));
+  } else {
+    RIG_ASSIGN_OR_RETURN(bands, OpenMapFiles(paths));
+  }
+  sin.near_lamp = NearLamp::FromLightFrame(config.light_frame, bands->height());
+  const auto& patch = config.process.reference_patch_px;
+  if (patch[2] > 0 && patch[3] > 0) {
+    RIG_ASSIGN_OR_RETURN(std::vector<cv::Mat> crops, ReadPatches(*bands, patch));
+    DivideByFalloff(sin.near_lamp, sin.directions, patch[0], patch[1], bands->width(),
+                    bands->height(), &crops);
+    RIG_ASSIGN_OR_RETURN(sin.lamp_radiance_rgb,
+                         CalibrateLampRadiance(crops, {0, 0, patch[2], patch[3]},
+                                               config.process.reference_reflectance));
+  }
+  RIG_ASSIGN_OR_RETURN(StreamFitOutput r,
+                       FitModelFromBands(*bands, sin, req.options, req.out, req.pixel_type));
+  MapFitResult result;
+  result.streamed = !in_memory;
+  const std::string near = fmt::format(
+      "near lamp {:.6g} mm, surface at z = {:.6g} mm: samples divided by their fall-off, {}",
+      sin.near_lamp.distance_mm, sin.near_lamp.plane_z_mm,
+      r.near_tile_px > 0 ? fmt::format("{} px tiles ({} projectors)", r.near_tile_px, r.projectors)
+                         : std::string("one direction per lamp"));
+  result.summary = fmt::format(
+      "wrote {}{}: basis {} order {} ({} terms), LOO RMSE {:.5g}; {}; {:.2f} s", req.out,
+      in_memory ? "" : " (streamed)", BasisKindName(req.options.basis), r.selection.order,
+      r.selection.projector.basis.size(), r.loo_rmse, near, r.time_s);
+  result.report = fmt::format(
+      "# Model fitted from {}\n\n{} maps {}x{}; basis {}, chosen order {} ({} terms), "
+      "leave-one-out RMS error {:.5g} (the selection's own estimate); {}.\n\n"
+      "| order | terms | supported | LOO RMS error | condition | λ (relative) |\n"
+      "|---|---|---|---|---|---|\n",
+      req.list, paths.size(), r.width, r.height, BasisKindName(req.options.basis),
+      r.selection.order, r.selection.projector.basis.size(), r.loo_rmse, near);
+  for (const auto& o : r.selection.orders)
+    result.report += fmt::format("| {} | {} | {} | {} | {:.3g} | {:.3g} |\n", o.order, o.terms,
+                                 o.supported ? "yes" : "no: " + o.refusal,
+                                 o.supported ? fmt::format("{:.5g}", o.loo_rmse) : "—",
+                                 o.condition, o.lambda_relative);
+  return result;
+}
+
 }  // namespace
 
 Result<MapFitResult> FitMaps(const MapFitRequest& req) {
@@ -94,6 +166,8 @@ Result<MapFitResult> FitMaps(const MapFitRequest& req) {
   for (const auto& e : entries) paths.push_back(e.path);
   RIG_ASSIGN_OR_RETURN(auto est, EstimateSampleBytes(paths));
   const ProcessConfig& pc = config.process;
+  if (config.light_frame.lamp_distance_mm > 0 && config.light_frame.field_height_mm > 0)
+    return FitNearLampMaps(req, input, paths, est <= req.stream_above_bytes);
   if (est > req.stream_above_bytes && pc.reference_patch_px[2] == 0) {
     StreamFitInput sin;
     sin.paths = paths;

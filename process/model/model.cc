@@ -168,6 +168,7 @@ std::map<std::string, std::string> ModelHeaderAttributes(const Model& m) {
   a["sample_spacing_deg"] = Num(i.sample_spacing_deg);
   a["flagged_pixels"] = std::to_string(i.flagged_pixels);
   a["source_encoding"] = i.source_encoding == ValueEncoding::kSrgb ? "srgb" : "linear";
+  if (!i.near_lamp.empty()) a["near_lamp"] = i.near_lamp;
   a["channel_layout"] =
       "cKK.R/G/B: coefficient of basis term KK (sh/hsh: k = l*l+l+m; ptm: 1, lu, lv, lu^2, "
       "lu*lv, lv^2, ...); rho = inverse_fit_space(sum_k b_k(dir) cKK); radiance = rho * "
@@ -262,6 +263,7 @@ Result<Model> ModelFromHeader(const std::map<std::string, std::string>& a, int w
                        it->second.substr(0, 40));
     }
   }
+  if (auto it = a.find("near_lamp"); it != a.end()) i.near_lamp = it->second.substr(0, 1000);
   if (auto it = a.find("lamp_directions"); it != a.end()) {
     std::istringstream ds(it->second);
     std::string item;

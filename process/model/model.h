@@ -36,6 +36,8 @@ struct ModelInfo {
   size_t flagged_pixels = 0;
   // kSrgb: fitted to 8-bit photographs (an .lp set), so a picture is by default their encoding.
   ValueEncoding source_encoding = ValueEncoding::kLinear;
+  // A near lamp's correction of the samples (the header's "near_lamp"); empty: none.
+  std::string near_lamp;
 };
 
 // Where a lamp direction lies relative to the sampled lamps.

@@ -239,7 +239,7 @@ Status ApplyTiles(const Projector& chosen, const NearLamp& lamp, const std::vect
       const int tx1 = std::min(w, tx0 + tile);
       // The tile's centre, on the plane or at the tile's mean depth.
       const double z =
-          lamp.depth_mm.empty() ? 0.0
+          lamp.depth_mm.empty() ? lamp.plane_z_mm
                                 : cv::mean(lamp.depth_mm(cv::Range(ty0, ty1), cv::Range(tx0, tx1)))[0];
       double falloff = 1;
       for (size_t i = 0; i < n; ++i)
@@ -358,7 +358,9 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
     if (near) {
       attributes["near_lamp"] = fmt::format(
           "{:.6g} mm, {:.6g} mm/px, {}; samples divided by their fall-off, {}", lamp.distance_mm,
-          lamp.mm_per_px, lamp.depth_mm.empty() ? "surface at z = 0" : "depth map given",
+          lamp.mm_per_px,
+          lamp.depth_mm.empty() ? fmt::format("surface at z = {:.6g} mm", lamp.plane_z_mm)
+                                : std::string("depth map given"),
           tile > 0 ? fmt::format("directions at the centre of every {} px tile", tile)
                    : std::string("one direction per lamp"));
     }
@@ -573,8 +575,10 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
     out.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     if (tile > 0) out.projectors = projectors.load();
     if (near) {
-      Log("process")->info("near lamp distance_mm={:.6g} mm_per_px={:.6g} tile_px={} projectors={}",
-                           lamp.distance_mm, lamp.mm_per_px, tile, out.projectors);
+      Log("process")->info("near lamp distance_mm={:.6g} mm_per_px={:.6g} surface_z_mm={} "
+                           "tile_px={} projectors={}", lamp.distance_mm, lamp.mm_per_px,
+                           lamp.depth_mm.empty() ? fmt::format("{:.6g}", lamp.plane_z_mm)
+                                                 : std::string("map"), tile, out.projectors);
     }
     Log("process")->info("band fit {}x{} poses={} order={} terms={} workers={} missing_pixels={} "
                          "flagged={} time_s={:.2f} (gram {:.2f}{}, selection {:.2f}; summed over "

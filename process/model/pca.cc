@@ -753,12 +753,13 @@ Status PcaModel::Save(const std::string& folder) const {
     RIG_TRY(WriteJpeg((fs::path(folder) / fmt::format("plane_{}.jpg", j)).string(), rgb,
                       kPcaPlaneColor, jpeg_quality_));
   }
-  return WritePcaInfo(folder, width_, height_, basis_, quant_, lights_, jpeg_quality_);
+  return WritePcaInfo(folder, width_, height_, basis_, quant_, lights_, jpeg_quality_, near_lamp_);
 }
 
 Status WritePcaInfo(const std::string& folder, int width, int height, const PcaBasis& basis,
                     const std::vector<PlaneQuantisation>& quant,
-                    const std::vector<Vec3>& lights, int jpeg_quality) {
+                    const std::vector<Vec3>& lights, int jpeg_quality,
+                    const std::string& near_lamp) {
   std::error_code ec;
   const int k = basis.components;
   nlohmann::ordered_json info;
@@ -794,6 +795,7 @@ Status WritePcaInfo(const std::string& folder, int width, int height, const PcaB
                  {"smoothness", basis.smoothness},
                  {"light_loo_rms", basis.light_loo_rms},
                  {"eigenvalues", basis.eigenvalues}};
+  if (!near_lamp.empty()) info["rig"]["near_lamp"] = near_lamp;
   const fs::path path = fs::path(folder) / "info.json";
   const fs::path tmp = fs::path(folder) / ".info.json.tmp";
   {
@@ -891,6 +893,7 @@ Result<PcaModel> PcaModel::Load(const std::string& folder) {
       b.smoothness = r.value("smoothness", 0.0);
       b.light_loo_rms = r.value("light_loo_rms", 0.0);
       if (r.contains("eigenvalues")) b.eigenvalues = r.at("eigenvalues").get<std::vector<double>>();
+      m.near_lamp_ = r.value("near_lamp", std::string());
     }
   } catch (const nlohmann::json::exception& e) {
     return MakeError(ErrorCode::kInvalidInput, path, "{}", e.what());

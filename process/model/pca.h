@@ -106,6 +106,10 @@ class PcaModel {
   const std::vector<Vec3>& lights() const { return lights_; }
   int jpeg_quality() const { return jpeg_quality_; }
   const std::vector<cv::Mat>& planes() const { return planes_; }  // k × CV_8U
+  // A near lamp's correction of the samples it was fitted to (info.json's rig.near_lamp);
+  // empty: none.
+  const std::string& near_lamp() const { return near_lamp_; }
+  void set_near_lamp(std::string note) { near_lamp_ = std::move(note); }
 
   // Predicted values at a direction, CV_32FC3 in B, G, R order, in encoded units (code / 255,
   // not clipped). Uses the coefficients exactly as held (after Load: as the files hold them).
@@ -126,6 +130,7 @@ class PcaModel {
   std::vector<PlaneQuantisation> quant_;
   std::vector<cv::Mat> planes_;  // k × CV_8U, the quantised coefficients
   std::vector<Vec3> lights_;     // the fitted lights (written as relight does)
+  std::string near_lamp_;
 };
 
 // The principal components of a capture's samples over a seeded sample of pixels, with the
@@ -201,9 +206,12 @@ void QuantisePcaPlane(const Eigen::MatrixXf& coefficients, int p, const PlaneQua
                       uint8_t* out);
 // info.json alone, exactly as PcaModel::Save writes it beside the planes (replaced through a
 // temporary name), for writers that produce the planes themselves; the folder must exist.
+// `near_lamp` (non-empty): how the samples were corrected for a near lamp, written in the
+// "rig" block.
 Status WritePcaInfo(const std::string& folder, int width, int height, const PcaBasis& basis,
                     const std::vector<PlaneQuantisation>& quantisation,
-                    const std::vector<Vec3>& lights, int jpeg_quality);
+                    const std::vector<Vec3>& lights, int jpeg_quality,
+                    const std::string& near_lamp = "");
 
 // The same basis with only its first k components (exact: each is quantised on its own).
 PcaBasis TruncatePcaBasis(const PcaBasis& basis, int k);

@@ -93,6 +93,7 @@ Result<std::unique_ptr<ReflectanceModel>> FitHarmonic(const RtiCapture& cap,
   RIG_ASSIGN_OR_RETURN(FitOutput fitted, FitModel(input, o));
   // Photographs' codes (sRGB unless told linear): pictures reproduce them by default.
   fitted.model.info().source_encoding = req.linear ? ValueEncoding::kLinear : ValueEncoding::kSrgb;
+  fitted.model.info().near_lamp = req.near_lamp;
   *seconds = fitted.fit_time_s;
   const Model& m = fitted.model;
   *summary = fmt::format("{} order {} ({} terms per channel), {} in {} space, {} pixels flagged",
@@ -208,6 +209,7 @@ Result<RtiFitResult> FitRti(const RtiCapture& cap, const RtiFitRequest& req) {
         fit.choice.reason, fit.stats.masked_samples, fit.stats.refitted_pixels,
         PcaMaskModeName(co.base.mask));
     out.report += PcaChoiceMarkdown(fit.choice);
+    fit.model.set_near_lamp(req.near_lamp);
     out.model = WrapPca(std::move(fit.model));
     return out;
   }

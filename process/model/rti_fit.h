@@ -45,6 +45,10 @@ struct RtiFitRequest {
   // sh/hsh/ptm: the images' codes are linear in radiance (÷255), not sRGB. The PCA family
   // models the codes as they are stored, so it does not need to know.
   bool linear = false;
+  // Non-empty: the capture's samples were divided by a near lamp's fall-off
+  // (DivideSamplesByFalloff); recorded in the model (PCA: info.json rig.near_lamp; sh/hsh/ptm:
+  // the header's near_lamp).
+  std::string near_lamp;
 };
 
 struct RtiFitResult {

@@ -315,6 +315,32 @@ int RunCalibrateLights(int argc, char** argv) {
                               "spheres, ray miss {:.3f} mm\nfield_height_mm = {:.3f}\n",
                               lamp.distance_mm, lamp.determined, stack.size(), spheres.size(),
                               lamp.median_miss_mm, field.field_height_mm);
+      // The surface: the spheres' depths place it only if they rest on it.
+      if (lamp.depth_assumed) {
+        std::printf("surface: the spheres assumed resting on the plane z = 0 place it there "
+                    "(surface_depth_mm unset); give --sphere-depth-mm or --fit-sphere-depths "
+                    "for a suggestion\n");
+      } else {
+        const std::vector<double> under =
+            SurfaceUnderSpheres(lamp, spheres, field.field_height_mm, stack.height);
+        double mean = 0;
+        std::string each;
+        for (double z : under) {
+          mean += z / under.size();
+          each += fmt::format("{}{:.1f}", each.empty() ? "" : ", ", z);
+        }
+        const bool fits = lamp.distance_mm > field.field_height_mm + std::abs(mean);
+        std::printf("surface: if the spheres rest on the object's surface (facing the camera), "
+                    "it lies at z = %s mm under them (their centres' z minus their radii): "
+                    "suggested surface_depth_mm = %.1f, their mean%s; spheres on posts, or "
+                    "away from the object, say nothing of its depth\n",
+                    each.c_str(), mean,
+                    fits ? "" : " (but no farther from the lamp than the field is tall: it "
+                                "would be refused)");
+        lamp_toml += fmt::format("# surface_depth_mm = {:.1f}  # only if the spheres rest on the "
+                                 "object's surface: their centres' z minus radii, {} mm\n",
+                                 mean, each);
+      }
     } else {
       std::printf("lamp: far (%d of %zu images give a distance; these spheres resolve one up to "
                   "~%.0f mm): directions as for a far lamp, the spheres' mean\n",

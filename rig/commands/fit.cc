@@ -8,6 +8,8 @@
 #include "config/config.h"
 #include "config/log.h"
 #include "process/evaluate/rti_loo.h"
+#include "process/model/light_direction.h"
+#include "process/model/light_samples.h"
 #include "process/model/map_fit.h"
 #include "process/model/pca_stream.h"
 #include "process/model/rti_fit.h"
@@ -189,8 +191,35 @@ int RunLp(FitArgs a, const Config& config) {
                          static_cast<double>(sample_bytes) / (1 << 20), a.downsample, a.stream_mb));
   }
   const bool streamed = above && folder_family;
+  const bool near = config.light_frame.lamp_distance_mm > 0 && config.light_frame.field_height_mm > 0;
+  if (near && streamed) {
+    return ReportError(
+        "fit", MakeError(ErrorCode::kInvalidInput, a.lp,
+                         "a near lamp ([light_frame] lamp_distance_mm of {}) divides the samples "
+                         "by their fall-off in memory; {:.0f} MB of samples is above "
+                         "--stream-above-mb {}: raise it, or use --downsample",
+                         a.config_path, static_cast<double>(sample_bytes) / (1 << 20),
+                         a.stream_mb));
+  }
   auto capture = streamed ? Result<RtiCapture>(RtiCapture{}) : LoadRtiCapture(a.lp, a.downsample);
   if (!capture.ok()) return ReportError("fit", capture.error());
+  std::string near_note;
+  if (near) {
+    // A near lamp: every sample divided by its pixel's fall-off (in linear units), so that the
+    // fitted reflectance is the far lamp's; the .lp's directions are taken from the arm's centre.
+    const NearLamp lamp = NearLamp::FromLightFrame(config.light_frame, capture->samples.height);
+    const size_t clipped = DivideSamplesByFalloff(lamp, !a.linear, &capture->samples);
+    capture->masked_samples += clipped;
+    if (!capture->samples.values.empty())
+      capture->masked_fraction = static_cast<double>(capture->masked_samples) /
+                                 static_cast<double>(capture->samples.values.size());
+    near_note = fmt::format(
+        "{:.6g} mm, {:.6g} mm/px, surface at z = {:.6g} mm; samples divided by their fall-off "
+        "({} codes), {} sample-channels pushed to 255 and masked",
+        lamp.distance_mm, lamp.mm_per_px, lamp.plane_z_mm, a.linear ? "linear" : "sRGB", clipped);
+    std::printf("rig fit: near lamp %s\n", near_note.c_str());
+    std::fflush(stdout);
+  }
   if (!a.loo_report.empty()) {
     RtiLooOptions lo;
     lo.every = a.loo_every;
@@ -206,6 +235,7 @@ int RunLp(FitArgs a, const Config& config) {
   }
   RtiFitRequest req;
   req.family = a.basis.empty() ? "auto" : a.basis;
+  req.near_lamp = near_note;
   req.choice.max_bytes_per_pixel = a.max_bpp;
   req.choice.base.impute_iterations = a.impute;
   req.linear = a.linear;

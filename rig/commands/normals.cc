@@ -1,4 +1,5 @@
 // rig normals SESSION|MODEL|--lp FILE.lp --out NORMALS.exr: photometric-stereo normals and albedo.
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 
@@ -23,7 +24,7 @@ int RunNormals(int argc, char** argv) {
                "rig normals"};
   std::string source, lp, lights, out, model_folder, height, log_level;
   bool plain = false, far = false;
-  double lamp_mm = -1, field_mm = 0;
+  double lamp_mm = -1, field_mm = 0, surface_mm = std::nan("");
   int threads = 2;
   app.add_option("source", source, "a session folder or a model (rendered at 37 directions)");
   app.add_option("--lp", lp, "an .lp capture");
@@ -35,6 +36,9 @@ int RunNormals(int argc, char** argv) {
                  "session's [light_frame] lamp_distance_mm; 0: far)")->check(CLI::NonNegativeNumber);
   app.add_option("--field-height-mm", field_mm, "the field's height at the object (mm), with "
                  "--lamp-distance-mm")->check(CLI::NonNegativeNumber);
+  app.add_option("--surface-depth-mm", surface_mm, "the surface's z (mm, towards the camera from "
+                 "the arm's centre of rotation), with a near lamp (default: a session's "
+                 "[light_frame] surface_depth_mm, else 0)");
   app.add_flag("--far", far, "ignore a session's lamp distance (the far-lamp assumption)");
   app.add_option("--model-folder", model_folder, "also write normals.png and albedo.png into this "
                  "folder (a model's, for its relighting page)");
@@ -70,6 +74,7 @@ int RunNormals(int argc, char** argv) {
     const auto& f = src->session_config->light_frame;
     lamp_mm = f.lamp_distance_mm;
     if (field_mm <= 0) field_mm = f.field_height_mm;
+    if (std::isnan(surface_mm)) surface_mm = f.surface_depth_mm;
   }
   if (lamp_mm > 0 && !far) {
     if (field_mm <= 0) {
@@ -78,6 +83,14 @@ int RunNormals(int argc, char** argv) {
     }
     o.lamp.distance_mm = lamp_mm;
     o.lamp.mm_per_px = field_mm / stack.height;
+    o.lamp.plane_z_mm = std::isnan(surface_mm) ? 0.0 : surface_mm;
+    if (!std::isfinite(o.lamp.plane_z_mm) ||
+        (o.lamp.plane_z_mm != 0 && std::abs(o.lamp.plane_z_mm) + field_mm >= lamp_mm)) {
+      std::fprintf(stderr, "rig normals: --surface-depth-mm %g: |surface depth| + the field's "
+                           "height must stay below the lamp's distance (%g mm)\n",
+                   o.lamp.plane_z_mm, lamp_mm);
+      return 2;
+    }
   }
   auto ps = PhotometricStereo(stack, stack.directions, o);
   if (!ps.ok()) return ReportError("normals", ps.error());

@@ -13,6 +13,7 @@ namespace rig {
 namespace {
 
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 const char* kMinimal = R"([bracket]
 center_s = 0.02
@@ -73,6 +74,38 @@ TEST(Config, ALampInsideTheFieldItLightsIsRefused) {
   std::string near = std::string(kMinimal) +
                      "\n[light_frame]\nlamp_distance_mm = 300\nfield_height_mm = 100\n";
   EXPECT_TRUE(ParseConfig(near, "t.toml").ok());
+}
+
+// The surface's depth relative to the arm's centre: read, written back (only when set, so a
+// session without it keeps its resolved text), and refused naming the key when it leaves the
+// lamp no farther from the surface than the field is tall, or is not a finite number.
+TEST(Config, TheSurfaceDepthIsReadWrittenAndRefusedWhereTheLampCannotBeFarther) {
+  const std::string head = std::string(kMinimal) +
+                           "\n[light_frame]\nlamp_distance_mm = 300\nfield_height_mm = 100\n";
+  auto ok = ParseConfig(head + "surface_depth_mm = -50\n", "t.toml");
+  ASSERT_TRUE(ok.ok());
+  EXPECT_EQ(ok.config.light_frame.surface_depth_mm, -50);
+  const std::string text = ToToml(ok.config);
+  EXPECT_THAT(text, HasSubstr("surface_depth_mm = -50"));
+  auto back = ParseConfig(text, "back.toml");
+  ASSERT_TRUE(back.ok());
+  EXPECT_EQ(back.config.light_frame.surface_depth_mm, -50);
+  auto unset = ParseConfig(head, "t.toml");
+  ASSERT_TRUE(unset.ok());
+  EXPECT_EQ(unset.config.light_frame.surface_depth_mm, 0);
+  EXPECT_THAT(ToToml(unset.config), Not(HasSubstr("surface_depth_mm")));
+  // 300 mm from the centre, a surface 250 mm behind it in a 100 mm field: refused.
+  for (const char* z : {"-250", "200.5"}) {
+    auto d = Only(ParseConfig(head + "surface_depth_mm = " + z + "\n", "t.toml"),
+                  "light_frame.surface_depth_mm");
+    EXPECT_THAT(d.message, HasSubstr("|surface_depth_mm| + field_height_mm must stay below"));
+  }
+  auto d = Only(ParseConfig(head + "surface_depth_mm = nan\n", "t.toml"),
+                "light_frame.surface_depth_mm");
+  EXPECT_THAT(d.message, HasSubstr("out of range"));
+  // A far lamp ignores it.
+  EXPECT_TRUE(ParseConfig(std::string(kMinimal) + "\n[light_frame]\nsurface_depth_mm = -500\n",
+                          "t.toml").ok());
 }
 
 TEST(Config, OutOfRangeNamesTheRange) {

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include "process/io/exr_io.h"
@@ -135,11 +136,15 @@ class NearFitTest : public ::testing::Test {
   int fits_ = 0;
 };
 
-StreamFitInput NearInput(const Capture& c, int tile_px, bool falloff_only, const cv::Mat& depth) {
+// A near-lamp fit's input: the surface on the plane z = plane_z_mm ([light_frame]
+// surface_depth_mm), or at `depth` per pixel when given.
+StreamFitInput NearInput(const Capture& c, int tile_px, bool falloff_only, const cv::Mat& depth,
+                         double plane_z_mm = 0) {
   StreamFitInput in = c.in;
   LightFrameConfig frame;
   frame.lamp_distance_mm = kLampMm;
   frame.field_height_mm = kFieldMm;
+  frame.surface_depth_mm = plane_z_mm;
   in.near_lamp = NearLamp::FromLightFrame(frame, 120);
   in.near_lamp.depth_mm = depth;
   in.near_tile_px = tile_px;
@@ -238,6 +243,65 @@ TEST(NearLampFalloff, ACropIsDividedAsTheSameRegionOfTheWholeImage) {
   EXPECT_GT(cv::norm(crop[1], before, cv::NORM_INF), 0.0);  // the fall-off is not 1 there
 }
 
+// [light_frame] surface_depth_mm places the plane: the same directions, fall-offs and tile
+// bound as a constant depth map, and the fit's header says where the surface was taken.
+TEST(NearLampPlane, APlaneOffsetIsAConstantDepthMap) {
+  LightFrameConfig frame;
+  frame.lamp_distance_mm = kLampMm;
+  frame.field_height_mm = kFieldMm;
+  frame.surface_depth_mm = -50;
+  const NearLamp plane = NearLamp::FromLightFrame(frame, 120);
+  EXPECT_EQ(plane.plane_z_mm, -50);
+  NearLamp map = plane;
+  map.plane_z_mm = 0;
+  map.depth_mm = cv::Mat(120, 160, CV_32FC1, cv::Scalar(-50));
+  frame.surface_depth_mm = 0;
+  const NearLamp through = NearLamp::FromLightFrame(frame, 120);
+  for (const Vec3& l : {LightDirection(0, 0), LightDirection(70, 20), LightDirection(-30, 5)})
+    for (const auto& [i, j] : {std::pair{0, 0}, {159, 119}, {80, 7}}) {
+      double fp = 0, fm = 0, f0 = 0;
+      const Vec3 a = plane.At(i, j, 160, 120, l, &fp), b = map.At(i, j, 160, 120, l, &fm);
+      through.At(i, j, 160, 120, l, &f0);
+      EXPECT_EQ(a, b);
+      EXPECT_EQ(fp, fm);
+      EXPECT_NE(fp, f0);  // the plane moved
+      EXPECT_EQ(plane.InverseFalloff(i, j, 160, 120, l), map.InverseFalloff(i, j, 160, 120, l));
+    }
+  EXPECT_EQ(plane.TilePx(160, 120, 1.0), map.TilePx(160, 120, 1.0));
+  NearLamp deep = plane;
+  deep.plane_z_mm = -150;  // |z| bounds the tile
+  EXPECT_LT(deep.TilePx(160, 120, 1.0), through.TilePx(160, 120, 1.0));
+  EXPECT_LE(plane.TilePx(160, 120, 1.0), through.TilePx(160, 120, 1.0));
+  // A far lamp ignores it.
+  frame.lamp_distance_mm = 0;
+  frame.surface_depth_mm = -50;
+  const NearLamp far = NearLamp::FromLightFrame(frame, 120);
+  double f = 0;
+  EXPECT_FALSE(far.near());
+  EXPECT_EQ(far.At(3, 4, 160, 120, LightDirection(40, 10), &f), LightDirection(40, 10));
+  EXPECT_EQ(f, 1);
+}
+
+TEST_F(NearFitTest, TheHeaderSaysWhereTheSurfaceWasTaken) {
+  const SimScene scene = MakeScene(kLampMm);
+  const Capture c = Render(scene);
+  for (double z : {0.0, -50.0}) {
+    auto bands = c.store->Bands(c.keys);
+    ASSERT_TRUE(bands.ok()) << bands.error().ToString();
+    const std::string out = (dir_ / fmt::format("header_{}.exr", fits_++)).string();
+    FitOptions o;
+    o.order = 4;
+    auto fit = FitModelFromBands(**bands, NearInput(c, 0, false, cv::Mat(), z), o, out,
+                                 ExrPixelType::kFloat);
+    ASSERT_TRUE(fit.ok()) << fit.error().ToString();
+    auto header = ReadExr(out);
+    ASSERT_TRUE(header.ok()) << header.error().ToString();
+    ASSERT_TRUE(header->attributes.count("near_lamp"));
+    EXPECT_NE(header->attributes.at("near_lamp").find(fmt::format("surface at z = {:g} mm", z)),
+              std::string::npos) << header->attributes.at("near_lamp");
+  }
+}
+
 TEST_F(NearFitTest, PrintsTheTableOfDocsLights) {
   const SimScene far_scene = MakeScene(0);
   const Capture far_capture = Render(far_scene);
@@ -254,17 +318,32 @@ TEST_F(NearFitTest, PrintsTheTableOfDocsLights) {
   // Where the fit places the surface: the plane through the centre of rotation (what a
   // session's [light_frame] says; the simulator's plane lies ~50 mm behind it), or the
   // surface's depth per pixel.
-  const std::vector<std::pair<std::string, cv::Mat>> surfaces = {{"z = 0", cv::Mat()},
-                                                                 {"depth known", depth}};
-  for (const auto& [where, d] : surfaces) {
-    rows.push_back({"fall-off only, " + where, FitAndRelight(scene, c, NearInput(c, 0, true, d))});
+  // Between them, the plane at the simulator's true depth at the image centre
+  // ([light_frame] surface_depth_mm; the plane is tilted and the sphere stands in front).
+  struct Surface {
+    std::string where;
+    cv::Mat depth;
+    double plane_z_mm;
+  };
+  const double z_true = scene.plane_depth_mm();
+  const std::vector<Surface> surfaces = {
+      {"z = 0", cv::Mat(), 0},
+      {fmt::format("surface_depth_mm = {:g}", z_true), cv::Mat(), z_true},
+      {"depth known", depth, 0}};
+  for (const auto& [where, d, z] : surfaces) {
+    rows.push_back({"fall-off only, " + where, FitAndRelight(scene, c, NearInput(c, 0, true, d, z))});
     for (int tile : {32, 16, 8, 0}) {
-      const Relit r = FitAndRelight(scene, c, NearInput(c, tile, false, d));
+      const Relit r = FitAndRelight(scene, c, NearInput(c, tile, false, d, z));
       rows.push_back({"per tile " + std::to_string(r.tile_px) + " px" + (tile == 0 ? " (1° bound)" : "") + ", " + where, r});
     }
   }
   // Every pixel its own projector (19200 of them): what the tiles approach.
   rows.push_back({"per pixel, depth known", FitAndRelight(scene, c, NearInput(c, 1, false, depth))});
+  // The one plane that suits this scene best is not the plane's own: the sphere stands up to
+  // ~66 mm in front of it; the scene's mean depth.
+  const double z_mean = cv::mean(depth)[0];
+  rows.push_back({fmt::format("per tile (1° bound), surface_depth_mm = {:.1f} (the scene's mean depth)", z_mean),
+                  FitAndRelight(scene, c, NearInput(c, 0, false, cv::Mat(), z_mean))});
   std::printf("| lamp 300 mm from a 100 mm field, matte 160x120, 40 poses | order | projectors | relit relative RMS | PSNR (dB) | fit time (s) |\n");
   std::printf("|---|---|---|---|---|---|\n");
   for (const auto& row : rows)
@@ -273,7 +352,16 @@ TEST_F(NearFitTest, PrintsTheTableOfDocsLights) {
   // Every correction helps, and directions help beyond the fall-off.
   const double far_assumption = rows[1].r.relative_rms;
   for (size_t i = 2; i < rows.size(); ++i) EXPECT_LT(rows[i].r.relative_rms, far_assumption) << rows[i].name;
-  EXPECT_LT(rows.back().r.relative_rms, rows[rows.size() - 6].r.relative_rms);  // per pixel vs fall-off only (depth known)
+  // Rows 2-6 are z = 0, 7-11 the plane at its true depth, 12-16 the depth map (fall-off only,
+  // then tiles down to the bound), 17 per pixel, 18 the plane at the scene's mean depth.
+  ASSERT_EQ(rows.size(), 19u);
+  EXPECT_LT(rows[17].r.relative_rms, rows[12].r.relative_rms);  // per pixel vs fall-off only (depth known)
+  // The plane at its true depth removes part of the error of z = 0 (the sphere in front of
+  // it keeps the rest), and never does worse than it, with or without tiles.
+  EXPECT_LT(rows[11].r.relative_rms, 0.85 * rows[6].r.relative_rms);  // 1° tiles
+  EXPECT_LT(rows[7].r.relative_rms, rows[2].r.relative_rms);          // fall-off only
+  EXPECT_LT(rows[18].r.relative_rms, rows[11].r.relative_rms);        // the mean depth suits it better
+  EXPECT_GT(rows[18].r.relative_rms, rows[16].r.relative_rms);        // than any plane: the depth map
 }
 
 }  // namespace

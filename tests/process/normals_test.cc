@@ -160,9 +160,11 @@ TEST(PhotometricStereo, NearLampCorrectionRemovesTheFarLampError) {
   // pixel's light by up to ~15 deg at the corners and changes its irradiance by the fall-off.
   const SimScene scene = Scene("matte", 160, 120, 300);
   Capture c = Render(scene);
-  PsOptions far, near0, near;
-  near0.lamp.distance_mm = near.lamp.distance_mm = 300;
-  near0.lamp.mm_per_px = near.lamp.mm_per_px = 100.0 / scene.height();
+  PsOptions far, near0, near, plane;
+  near0.lamp.distance_mm = near.lamp.distance_mm = plane.lamp.distance_mm = 300;
+  near0.lamp.mm_per_px = near.lamp.mm_per_px = plane.lamp.mm_per_px = 100.0 / scene.height();
+  // [light_frame] surface_depth_mm: the plane's true depth at the image centre.
+  plane.lamp.plane_z_mm = scene.plane_depth_mm();
   // The scene's true depth: its plane lies ~50 mm behind the arm's centre of rotation.
   near.lamp.depth_mm = cv::Mat(scene.height(), scene.width(), CV_32FC1);
   for (int y = 0; y < scene.height(); ++y)
@@ -172,7 +174,8 @@ TEST(PhotometricStereo, NearLampCorrectionRemovesTheFarLampError) {
   auto a = PhotometricStereo(c.stack, c.stack.directions, far);
   auto b0 = PhotometricStereo(c.stack, c.stack.directions, near0);
   auto b = PhotometricStereo(c.stack, c.stack.directions, near);
-  ASSERT_TRUE(a.ok() && b0.ok() && b.ok());
+  auto bp = PhotometricStereo(c.stack, c.stack.directions, plane);
+  ASSERT_TRUE(a.ok() && b0.ok() && b.ok() && bp.ok());
   const cv::Mat n = scene.Normals();
   // Relit error: albedo * max(0, N.L) against the far-lamp truth rho at off-grid directions.
   auto relit = [&](const PsResult& ps) {
@@ -195,18 +198,21 @@ TEST(PhotometricStereo, NearLampCorrectionRemovesTheFarLampError) {
     return std::sqrt(se / st);
   };
   auto ea = NormalError(a->normals, n, c.unshadowed), eb0 = NormalError(b0->normals, n, c.unshadowed),
-       eb = NormalError(b->normals, n, c.unshadowed);
-  const double ra = relit(*a), rb0 = relit(*b0), rb = relit(*b);
+       eb = NormalError(b->normals, n, c.unshadowed), ebp = NormalError(bp->normals, n, c.unshadowed);
+  const double ra = relit(*a), rb0 = relit(*b0), rb = relit(*b), rbp = relit(*bp);
   std::printf("| lamp 300 mm from a 100 mm field (matte scene) | normals mean / p95 (deg) | relit rel. RMS | PS time (s) |\n");
   std::printf("| far-lamp assumption | %.2f / %.2f | %.4f | %.3f |\n", ea.mean_deg, ea.p95_deg, ra, a->time_s);
   std::printf("| near lamp, surface taken at z = 0 | %.2f / %.2f | %.4f | %.3f |\n", eb0.mean_deg,
               eb0.p95_deg, rb0, b0->time_s);
+  std::printf("| near lamp, surface_depth_mm = %g | %.2f / %.2f | %.4f | %.3f |\n",
+              plane.lamp.plane_z_mm, ebp.mean_deg, ebp.p95_deg, rbp, bp->time_s);
   std::printf("| near lamp, the surface's depth known | %.2f / %.2f | %.4f | %.3f |\n", eb.mean_deg,
               eb.p95_deg, rb, b->time_s);
   EXPECT_GT(ea.mean_deg, 2.0);
   EXPECT_LT(eb.mean_deg, 0.1);
   EXPECT_LT(rb, ra / 10);
   EXPECT_LT(eb0.mean_deg, ea.mean_deg);
+  EXPECT_LT(rbp, rb0);  // the plane's depth given: closer than the plane through the centre
 }
 
 TEST(PhotometricStereo, HeightFromNormalsRecoversAPeriodicRelief) {

@@ -269,12 +269,27 @@ TEST_F(CalibrateNearLamp, TwoSpheresGiveTheLampsDistanceAndDirectionsFromTheArms
   // sphere over their ~100 mm baseline).
   EXPECT_NEAR(d, 300, sigma);
   EXPECT_GE(determined, 20);
+  // The surface under the spheres, were they resting on it: their centres' z minus their radii
+  // (the simulator's float in front of its plane, so this is not the plane's depth; printed).
+  double under = 0;
+  const auto views = scene.CalibrationSpheres();
+  for (const auto& c : views)
+    under += (c.center[2] * scene.mm_per_unit() - c.r_px * 100.0 / scene.height()) / views.size();
+  const auto at = r.output.find("suggested surface_depth_mm = ");
+  ASSERT_NE(at, std::string::npos) << r.output;
+  const double suggested = std::stod(r.output.substr(at + 29));
+  std::printf("dry-run session, depths given: suggested surface_depth_mm %.1f (spheres' bottoms; "
+              "the plane lies at %.1f)\n", suggested, scene.plane_depth_mm());
+  EXPECT_NEAR(suggested, under, 0.5);  // the circles refined to the edge: a few tenths of a px
+  EXPECT_THAT(testing::ReadText(*session_ + "/calib/light_frame.toml"),
+              HasSubstr("# surface_depth_mm = "));
 
   // The depths not given: both spheres assumed resting on the plane through the arm's centre
   // (the simulator's float 15 and 35 mm behind it). Printed; still near, still a distance.
   auto a = RunRig("calibrate-lights " + *session_ + " --force");
   ASSERT_EQ(a.status, 0) << a.output;
   EXPECT_THAT(a.output, HasSubstr("assumed resting on the plane"));
+  EXPECT_THAT(a.output, HasSubstr("surface_depth_mm unset"));
   double worst_assumed = 0;
   CheckRun(*session_ + "/calib", 90, 90, "near lamp, two spheres, depths assumed", &worst_assumed);
   toml::table ta = toml::parse_file(*session_ + "/calib/light_frame.toml");
