@@ -109,12 +109,9 @@ Result<MapFitResult> FitNearLampMaps(const MapFitRequest& req, const FitInput& i
   sin.near_lamp = NearLamp::FromLightFrame(config.light_frame, bands->height());
   const auto& patch = config.process.reference_patch_px;
   if (patch[2] > 0 && patch[3] > 0) {
-    RIG_ASSIGN_OR_RETURN(std::vector<cv::Mat> crops, ReadPatches(*bands, patch));
-    DivideByFalloff(sin.near_lamp, sin.directions, patch[0], patch[1], bands->width(),
-                    bands->height(), &crops);
     RIG_ASSIGN_OR_RETURN(sin.lamp_radiance_rgb,
-                         CalibrateLampRadiance(crops, {0, 0, patch[2], patch[3]},
-                                               config.process.reference_reflectance));
+                         LampRadianceFromPatch(*bands, patch, config.process.reference_reflectance,
+                                               sin.near_lamp, sin.directions));
   }
   RIG_ASSIGN_OR_RETURN(StreamFitOutput r,
                        FitModelFromBands(*bands, sin, req.options, req.out, req.pixel_type));

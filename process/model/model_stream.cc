@@ -159,6 +159,14 @@ Result<std::vector<cv::Mat>> ReadPatches(MapBands& maps, const std::array<int, 4
   return crops;
 }
 
+Result<std::array<double, 3>> LampRadianceFromPatch(MapBands& maps, const std::array<int, 4>& patch,
+                                                    double reflectance, const NearLamp& lamp,
+                                                    const std::vector<Vec3>& directions) {
+  RIG_ASSIGN_OR_RETURN(std::vector<cv::Mat> crops, ReadPatches(maps, patch));
+  DivideByFalloff(lamp, directions, patch[0], patch[1], maps.width(), maps.height(), &crops);
+  return CalibrateLampRadiance(crops, {0, 0, patch[2], patch[3]}, reflectance);
+}
+
 Status MapBands::ReadSamples(int y0, int y1, const SampleSpace& space,
                              const std::vector<Vec3>& directions, std::vector<cv::Mat>* bgr,
                              std::vector<cv::Mat>* valid, SampleMatrix* samples,

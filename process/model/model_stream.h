@@ -88,6 +88,14 @@ Result<std::unique_ptr<MapBands>> OpenMapFiles(const std::vector<std::string>& p
 // takes; a patch outside the maps is an error naming process.reference_patch_px.
 Result<std::vector<cv::Mat>> ReadPatches(MapBands& maps, const std::array<int, 4>& patch_px);
 
+// The lamp's radiance from the reference patch (x, y, width, height) of every map, of known
+// reflectance: the patch's samples divided by the near lamp's fall-off first (the patch's
+// reflectance is the far lamp's; a far lamp leaves them as they are), then
+// CalibrateLampRadiance.
+Result<std::array<double, 3>> LampRadianceFromPatch(MapBands& maps, const std::array<int, 4>& patch_px,
+                                                    double reflectance, const NearLamp& lamp,
+                                                    const std::vector<Vec3>& directions);
+
 // A near lamp: every CV_32FC3 image of `bgr` (one per direction; a crop whose top-left
 // pixel is (x0, y0) of a width x height image) divided by each pixel's fall-off, in place.
 // Negative and non-finite samples stay so; a far lamp leaves them unchanged.

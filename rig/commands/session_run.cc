@@ -131,13 +131,9 @@ Status FitSessionModel(const Session& session, const MapStore* maps) {
   const auto& patch = config.process.reference_patch_px;
   if (patch[2] > 0 && patch[3] > 0) {
     // Lamp radiance from the reference patch: only the patch of each map is read.
-    RIG_ASSIGN_OR_RETURN(std::vector<cv::Mat> crops, ReadPatches(*bands, patch));
-    // The patch's reflectance is the far lamp's: its samples without their fall-off.
-    DivideByFalloff(in.near_lamp, in.directions, patch[0], patch[1], bands->width(),
-                    bands->height(), &crops);
     RIG_ASSIGN_OR_RETURN(in.lamp_radiance_rgb,
-                         CalibrateLampRadiance(crops, {0, 0, patch[2], patch[3]},
-                                               config.process.reference_reflectance));
+                         LampRadianceFromPatch(*bands, patch, config.process.reference_reflectance,
+                                               in.near_lamp, in.directions));
     log->info("lamp radiance from the reference patch: R={:.4g} G={:.4g} B={:.4g}",
               in.lamp_radiance_rgb[0], in.lamp_radiance_rgb[1], in.lamp_radiance_rgb[2]);
   }

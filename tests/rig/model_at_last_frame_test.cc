@@ -48,6 +48,8 @@ TEST(ModelAtLastFrame, TheCapturedModelComesFromMemoryAndEqualsTheModelFromTheFi
   const std::string log = ReadText(s / "log.txt");
   EXPECT_EQ(Count(log, "model fitted from the maps in memory"), 1) << log;
   EXPECT_EQ(Count(log, "model fitted from the radiance map files"), 0) << log;
+  // Its order and λ were chosen from the Gram matrix accumulated as the maps arrived.
+  EXPECT_EQ(Count(log, "accumulated as the maps arrived"), 1) << log;
   fs::copy_file(s / "model" / "model.exr", fs::path(dir) / "from_memory.exr");
 
   {
@@ -64,6 +66,32 @@ TEST(ModelAtLastFrame, TheCapturedModelComesFromMemoryAndEqualsTheModelFromTheFi
   r = RunRig("resume " + s.string() + " --no-progress");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_EQ(Count(ReadText(s / "log.txt"), "model fitted from the maps in memory"), 2);
+  EXPECT_EQ(Count(ReadText(s / "log.txt"), "accumulated as the maps arrived"), 2);
+  ExpectSameModel(fs::path(dir) / "from_memory.exr", s / "model" / "model.exr");
+  fs::remove_all(dir);
+}
+
+// With the lamp's radiance taken from a reference patch (known only once every map is in),
+// nothing is accumulated ahead: the fit computes its Gram matrix from the maps in memory, and
+// the model still equals the one from the files.
+TEST(ModelAtLastFrame, AReferencePatchLeavesTheGramToTheFitAndTheSameModel) {
+  const std::string dir = testing::FreshTempDir("model_at_last_frame_patch");
+  const std::string cfg = testing::WriteSimConfig(
+      dir, "[sim]\nwidth = 96\nheight = 72\n\n[process]\nreference_patch_px = [40, 30, 8, 6]\n");
+  const fs::path s = fs::path(dir) / "S";
+  auto r = RunRig("capture --config " + cfg + " --out " + s.string() + " --dry-run --no-progress");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const std::string log = ReadText(s / "log.txt");
+  EXPECT_EQ(Count(log, "lamp radiance from the reference patch"), 1) << log;
+  EXPECT_EQ(Count(log, "model fitted from the maps in memory"), 1) << log;
+  EXPECT_EQ(Count(log, "accumulated as the maps arrived"), 0) << log;
+  fs::copy_file(s / "model" / "model.exr", fs::path(dir) / "from_memory.exr");
+  {
+    auto session = Session::OpenExisting(s);
+    ASSERT_TRUE(session.ok()) << session.error().ToString();
+    Status st = FitSessionModel(*session, nullptr);
+    ASSERT_TRUE(st.ok()) << st.error().ToString();
+  }
   ExpectSameModel(fs::path(dir) / "from_memory.exr", s / "model" / "model.exr");
   fs::remove_all(dir);
 }
