@@ -76,6 +76,17 @@ Status LoadRadiance(const std::string& path, cv::Mat* bgr, cv::Mat* valid) {
   return Ok();
 }
 
+// The band-wise fit's input for the maps of `paths` with the list's directions and lamp.
+StreamFitInput StreamInputOf(const FitInput& input, const std::vector<std::string>& paths) {
+  StreamFitInput sin;
+  sin.paths = paths;
+  sin.directions = input.directions;
+  sin.weights = input.weights;
+  sin.lamp_radiance_rgb = input.lamp_radiance_rgb;
+  sin.light_frame = input.light_frame;
+  return sin;
+}
+
 // A near lamp ([light_frame] lamp_distance_mm > 0): the session's fit, FitModelFromBands with
 // the same StreamFitInput (fall-off per pixel, directions per tile, the reference patch
 // divided by its fall-off), from the maps held in memory when they fit under the bound, else
@@ -83,12 +94,7 @@ Status LoadRadiance(const std::string& path, cv::Mat* bgr, cv::Mat* valid) {
 Result<MapFitResult> FitNearLampMaps(const MapFitRequest& req, const FitInput& input,
                                      const std::vector<std::string>& paths, bool in_memory) {
   const Config& config = req.config;
-  StreamFitInput sin;
-  sin.paths = paths;
-  sin.directions = input.directions;
-  sin.weights = input.weights;
-  sin.lamp_radiance_rgb = input.lamp_radiance_rgb;
-  sin.light_frame = input.light_frame;
+  StreamFitInput sin = StreamInputOf(input, paths);
   if (auto c = ParseExrCompression(config.process.model_compression); c.ok()) sin.compression = *c;
   std::unique_ptr<MapStore> store;
   std::unique_ptr<MapBands> bands;
@@ -166,12 +172,7 @@ Result<MapFitResult> FitMaps(const MapFitRequest& req) {
   if (config.light_frame.lamp_distance_mm > 0 && config.light_frame.field_height_mm > 0)
     return FitNearLampMaps(req, input, paths, est <= req.stream_above_bytes);
   if (est > req.stream_above_bytes && pc.reference_patch_px[2] == 0) {
-    StreamFitInput sin;
-    sin.paths = paths;
-    sin.directions = input.directions;
-    sin.weights = input.weights;
-    sin.lamp_radiance_rgb = input.lamp_radiance_rgb;
-    sin.light_frame = input.light_frame;
+    StreamFitInput sin = StreamInputOf(input, paths);
     RIG_ASSIGN_OR_RETURN(auto r, FitModelStreaming(sin, req.options, req.out, req.pixel_type));
     result.streamed = true;
     result.summary = fmt::format("wrote {} (streamed): basis {} order {} ({} terms), LOO RMSE {:.5g}",

@@ -18,6 +18,7 @@
 #include "sim/scene.h"
 #include "sim/truth.h"
 #include "tests/support/exif_jpeg.h"
+#include "tests/support/dry_session.h"
 #include "tests/support/run_rig.h"
 
 namespace rig {
@@ -27,11 +28,10 @@ namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 using testing::RunRig;
 
-class CalibrateLights : public ::testing::Test {
+class CalibrateLights : public testing::DrySessionSuite<CalibrateLights> {
  protected:
   static void SetUpTestSuite() {
-    dir_ = new std::string(testing::FreshTempDir("lights"));
-    const std::string cfg = testing::WriteSimConfig(*dir_, R"([light_frame]
+    Capture("lights", R"([light_frame]
 h_offset_deg = 2.5
 v_offset_deg = -1.5
 [sim]
@@ -39,20 +39,8 @@ scene = 'matte'
 chrome_spheres = 1
 matte_sphere = true
 )");
-    session_ = new std::string(*dir_ + "/S");
-    auto r = RunRig("capture --config " + cfg + " --out " + *session_ + " --dry-run --no-progress");
-    ASSERT_EQ(r.status, 0) << r.output;
   }
-  static void TearDownTestSuite() {
-    fs::remove_all(*dir_);
-    delete dir_;
-    delete session_;
-  }
-  static std::string* dir_;
-  static std::string* session_;
 };
-std::string* CalibrateLights::dir_ = nullptr;
-std::string* CalibrateLights::session_ = nullptr;
 
 // The fitted offsets and the .lp's directions against the truth, from a run's files; the
 // largest direction error in `worst_out` if given.
@@ -191,11 +179,10 @@ TEST_F(CalibrateLights, TheLampsDistanceNeedsTwoSpheres) {
 
 // A session whose lamp is 300 mm from the arm's centre (the simulator's exact near lamp) with
 // two chrome spheres; the rig's config knows the field's height, not the lamp's distance.
-class CalibrateNearLamp : public ::testing::Test {
+class CalibrateNearLamp : public testing::DrySessionSuite<CalibrateNearLamp> {
  protected:
   static void SetUpTestSuite() {
-    dir_ = new std::string(testing::FreshTempDir("nearlamp"));
-    const std::string cfg = testing::WriteSimConfig(*dir_, R"([light_frame]
+    Capture("nearlamp", R"([light_frame]
 h_offset_deg = 2.5
 v_offset_deg = -1.5
 field_height_mm = 100
@@ -205,20 +192,8 @@ chrome_spheres = 2
 lamp_distance_mm = 300
 field_height_mm = 100
 )");
-    session_ = new std::string(*dir_ + "/S");
-    auto r = RunRig("capture --config " + cfg + " --out " + *session_ + " --dry-run --no-progress");
-    ASSERT_EQ(r.status, 0) << r.output;
   }
-  static void TearDownTestSuite() {
-    fs::remove_all(*dir_);
-    delete dir_;
-    delete session_;
-  }
-  static std::string* dir_;
-  static std::string* session_;
 };
-std::string* CalibrateNearLamp::dir_ = nullptr;
-std::string* CalibrateNearLamp::session_ = nullptr;
 
 // The median distance and the median 1-sigma of the images with a distance, from lamp.csv.
 void ReadLampCsv(const std::string& path, double* median_sigma, int* determined) {

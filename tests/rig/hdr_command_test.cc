@@ -15,6 +15,7 @@
 #include <ImfInputFile.h>
 
 #include "process/io/exr_io.h"
+#include "tests/support/dry_session.h"
 #include "tests/support/run_rig.h"
 
 namespace rig {
@@ -24,19 +25,10 @@ namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 using testing::RunRig;
 
-class HdrCommands : public ::testing::Test {
+class HdrCommands : public testing::DrySessionSuite<HdrCommands> {
  protected:
   static void SetUpTestSuite() {
-    dir_ = new std::string(testing::FreshTempDir("hdr_commands"));
-    const std::string cfg = testing::WriteSimConfig(*dir_, "[sim]\nwidth = 96\nheight = 72\n");
-    session_ = new std::string(*dir_ + "/S");
-    auto r = RunRig("capture --config " + cfg + " --out " + *session_ + " --dry-run --no-progress");
-    ASSERT_EQ(r.status, 0) << r.output;
-  }
-  static void TearDownTestSuite() {
-    fs::remove_all(*dir_);
-    delete dir_;
-    delete session_;
+    Capture("hdr_commands", "[sim]\nwidth = 96\nheight = 72\n");
   }
   // A bracket list of pose h040_v20 with paths relative to the list's folder.
   static std::string WriteList(const std::string& name, const std::string& extra = "") {
@@ -53,11 +45,7 @@ class HdrCommands : public ::testing::Test {
     out << extra;
     return list.string();
   }
-  static std::string* dir_;
-  static std::string* session_;
 };
-std::string* HdrCommands::dir_ = nullptr;
-std::string* HdrCommands::session_ = nullptr;
 
 TEST_F(HdrCommands, MergesAListWithRelativePathsIntoAnExrWithItsHeader) {
   const std::string out = *dir_ + "/merged.exr";

@@ -11,6 +11,7 @@
 
 #include "process/io/exr_io.h"
 #include "sim/truth.h"
+#include "tests/support/dry_session.h"
 #include "tests/support/run_rig.h"
 
 namespace rig {
@@ -20,24 +21,15 @@ namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 using testing::RunRig;
 
-class RenderCommand : public ::testing::Test {
+class RenderCommand : public testing::DrySessionSuite<RenderCommand> {
  protected:
   // One small dry-run session (a matte scene plus broad gloss, no cast shadow) for all tests.
   static void SetUpTestSuite() {
-    dir_ = new std::string(testing::FreshTempDir("render"));
-    const std::string cfg = testing::WriteSimConfig(*dir_, R"([sim]
+    Capture("render", R"([sim]
 width = 96
 height = 72
 scene = 'gloss'
 )");
-    session_ = new std::string(*dir_ + "/S");
-    auto r = RunRig("capture --config " + cfg + " --out " + *session_ + " --dry-run --no-progress");
-    ASSERT_EQ(r.status, 0) << r.output;
-  }
-  static void TearDownTestSuite() {
-    fs::remove_all(*dir_);
-    delete dir_;
-    delete session_;
   }
 
   static cv::Mat Render(const std::string& lights, const std::string& name) {
@@ -49,11 +41,7 @@ scene = 'gloss'
     return img.ok() ? *img : cv::Mat();
   }
 
-  static std::string* dir_;
-  static std::string* session_;
 };
-std::string* RenderCommand::dir_ = nullptr;
-std::string* RenderCommand::session_ = nullptr;
 
 TEST_F(RenderCommand, TwoLampsRenderTheSumOfTheirSingleRenders) {
   cv::Mat a = Render("--light 20,10", "a"), b = Render("--light 75,25", "b");

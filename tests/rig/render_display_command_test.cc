@@ -14,6 +14,7 @@
 
 #include "process/io/exr_io.h"
 #include "process/render/envmap.h"
+#include "tests/support/dry_session.h"
 #include "tests/support/run_rig.h"
 
 namespace rig {
@@ -30,30 +31,17 @@ cv::Mat ReadGrey(const std::string& path) {
   return grey;
 }
 
-class RenderDisplay : public ::testing::Test {
+class RenderDisplay : public testing::DrySessionSuite<RenderDisplay> {
  protected:
   static void SetUpTestSuite() {
-    dir_ = new std::string(testing::FreshTempDir("render-display"));
-    const std::string cfg = testing::WriteSimConfig(*dir_, R"([sim]
+    Capture("render-display", R"([sim]
 width = 96
 height = 72
 scene = 'gloss'
 )");
-    session_ = new std::string(*dir_ + "/S");
-    auto r = RunRig("capture --config " + cfg + " --out " + *session_ + " --dry-run --no-progress");
-    ASSERT_EQ(r.status, 0) << r.output;
-  }
-  static void TearDownTestSuite() {
-    fs::remove_all(*dir_);
-    delete dir_;
-    delete session_;
   }
   static std::string Out(const std::string& name) { return *dir_ + "/" + name; }
-  static std::string* dir_;
-  static std::string* session_;
 };
-std::string* RenderDisplay::dir_ = nullptr;
-std::string* RenderDisplay::session_ = nullptr;
 
 TEST_F(RenderDisplay, LampIntensityChangesThePictureAndAFixedDisplayMakesPicturesCompare) {
   ASSERT_EQ(RunRig("render " + *session_ + " --light 45,20 --out " + Out("one.png")).status, 0);
