@@ -30,9 +30,9 @@
 #include "config/log.h"
 #include "process/io/exr_io.h"
 #include "process/io/image_io.h"
-#include "process/model/fit.h"
-#include "process/model/map_store.h"
-#include "process/model/model_stream.h"
+#include "process/model/harmonic/fit.h"
+#include "process/model/session/map_store.h"
+#include "process/model/session/model_stream.h"
 
 #include <ImfChannelList.h>
 #include <ImfFrameBuffer.h>

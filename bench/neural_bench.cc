@@ -25,8 +25,8 @@
 #include <opencv2/imgproc.hpp>
 
 #include "process/model/light_samples.h"
-#include "process/model/neural.h"
-#include "process/model/rti.h"
+#include "process/model/neural/neural.h"
+#include "process/model/harmonic/loo.h"
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;

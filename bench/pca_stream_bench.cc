@@ -30,9 +30,9 @@
 #include <fmt/format.h>
 
 #include "process/io/jpeg_io.h"
-#include "process/model/pca_choice.h"
-#include "process/model/pca_stream.h"
-#include "process/model/rti_fit.h"
+#include "process/model/pca/pca_choice.h"
+#include "process/model/pca/pca_stream.h"
+#include "process/model/any/rti_fit.h"
 
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;

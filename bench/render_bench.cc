@@ -13,7 +13,7 @@
 
 #include <opencv2/core.hpp>
 
-#include "process/model/model.h"
+#include "process/model/harmonic/model.h"
 #include "process/model/reflectance_model.h"
 #include "process/render/envmap.h"
 

@@ -15,9 +15,9 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "process/model/holdout.h"
-#include "process/model/pca.h"
-#include "process/model/pca_choice.h"
-#include "process/model/rti.h"
+#include "process/model/pca/pca.h"
+#include "process/model/pca/pca_choice.h"
+#include "process/model/harmonic/loo.h"
 
 namespace {
 

@@ -341,182 +341,209 @@ constexpr Range kPositive{1e-12, 1e300};
 constexpr Range kNonNegative{0, 1e300};
 constexpr Range kAngle{-360, 360};
 
-// The schema: every section and key, once.
+// A section of the schema: noted (for unknown-key checks), then visited.
+template <typename V, typename Body>
+void VisitSection(V& v, const std::string& name, bool required, Body&& body) {
+  v.NoteSection(name);
+  v.Section(name, required, body);
+}
+
+// The schema: every section and key, once — a function per top-level section.
+template <typename V>
+void VisitGridSection(Config& c, V& v) {
+  auto& g = c.grid;
+  v.Field("h_min_deg", g.h_min_deg, kAngle);
+  v.Field("h_max_deg", g.h_max_deg, kAngle);
+  v.Field("h_step_deg", g.h_step_deg, Range{0.01, 360});
+  v.Field("v_min_deg", g.v_min_deg, Range{-90, 90});
+  v.Field("v_max_deg", g.v_max_deg, Range{-90, 90});
+  v.Field("v_step_deg", g.v_step_deg, Range{0.01, 180});
+  v.Field("order", g.order, {"serpentine", "raster"});
+}
+
+template <typename V>
+void VisitBracketSection(Config& c, V& v) {
+  auto& b = c.bracket;
+  v.Field("exposure_times_s", b.exposure_times_s, Range{1e-6, 3600}, 1);
+  v.Field("center_s", b.center_s, Range{0, 3600});
+  v.Field("ev_step", b.ev_step, Range{0.1, 6});
+  v.Field("count", b.count, Range{0, 64});
+  v.Field("mode", b.mode, {"fixed", "adaptive"});
+}
+
+template <typename V>
+void VisitCameraSection(Config& c, V& v) {
+  auto& k = c.camera;
+  v.Field("backend", k.backend, {"sim", "gphoto2"}, true);
+  v.Field("model", k.model);
+  v.Field("port", k.port);
+  v.Field("serial", k.serial);
+  v.Field("iso", k.iso);
+  v.Field("aperture", k.aperture);
+  v.Field("white_balance", k.white_balance);
+  v.Field("capture_target", k.capture_target, {"ram", "card"});
+  v.Field("delete_from_card", k.delete_from_card);
+  v.Field("capture_raw", k.capture_raw);
+  v.Field("format", k.format, {"jpeg", "raw+jpeg", "raw"});
+  v.Field("linear", k.linear);
+  v.Field("retries", k.retries, Range{0, 100});
+  v.Field("retry_backoff_s", k.retry_backoff_s, Range{0, 600});
+  v.Field("call_timeout_s", k.call_timeout_s, Range{0.01, 3600});
+  v.Field("capture_deadline_s", k.capture_deadline_s, Range{0.01, 36000});
+  v.Field("exif_tolerance", k.exif_tolerance, Range{0, 10});
+}
+
+template <typename V>
+void VisitMotorSection(Config& c, V& v) {
+  auto& m = c.motor;
+  v.Field("backend", m.backend, {"sim", "grbl", "maestro"}, true);
+  v.Field("port", m.port);
+  v.Field("usb_vid_pid", m.usb_vid_pid);
+  v.Field("usb_serial", m.usb_serial);
+  v.Field("baud", m.baud, Range{300, 4000000});
+  v.Field("speed_deg_per_s", m.speed_deg_per_s, kPositive);
+  v.Field("accel_deg_per_s2", m.accel_deg_per_s2, kPositive);
+  v.Field("settle_time_s", m.settle_time_s, Range{0, 60});
+  v.Field("home_on_start", m.home_on_start);
+  v.Field("after_reconnect", m.after_reconnect, {"home", "verify"});
+  v.Field("reply_timeout_s", m.reply_timeout_s, Range{0.01, 600});
+  v.Field("move_timeout_s", m.move_timeout_s, Range{0.01, 3600});
+  v.Field("retries", m.retries, Range{0, 100});
+  v.Field("retry_backoff_s", m.retry_backoff_s, Range{0, 600});
+  v.Field("h_limit_min_deg", m.h_limit_min_deg, kAngle);
+  v.Field("h_limit_max_deg", m.h_limit_max_deg, kAngle);
+  v.Field("v_limit_min_deg", m.v_limit_min_deg, kAngle);
+  v.Field("v_limit_max_deg", m.v_limit_max_deg, kAngle);
+  VisitSection(v, "grbl", false, [&] {
+    auto& g = m.grbl;
+    v.Field("h_axis", g.h_axis, {"X", "Y", "Z"});
+    v.Field("v_axis", g.v_axis, {"X", "Y", "Z"});
+    v.Field("units_per_degree", g.units_per_degree, kPositive);
+    v.Field("completion", g.completion, {"dwell", "poll"});
+    v.Field("banner_timeout_s", g.banner_timeout_s, Range{0.01, 60});
+    v.Field("poll_interval_s", g.poll_interval_s, Range{0.001, 10});
+  });
+  VisitSection(v, "maestro", false, [&] {
+    auto& s = m.maestro;
+    v.Field("h_channel", s.h_channel, Range{0, 23});
+    v.Field("v_channel", s.v_channel, Range{0, 23});
+    v.Field("h_us_at_zero", s.h_us_at_zero, Range{64, 4080});
+    v.Field("h_us_per_deg", s.h_us_per_deg, Range{-100, 100});
+    v.Field("v_us_at_zero", s.v_us_at_zero, Range{64, 4080});
+    v.Field("v_us_per_deg", s.v_us_per_deg, Range{-100, 100});
+    v.Field("poll_interval_s", s.poll_interval_s, Range{0.001, 10});
+    v.Field("position_tolerance_us", s.position_tolerance_us, Range{0.25, 1000});
+  });
+}
+
+template <typename V>
+void VisitLampSection(Config& c, V& v) {
+  auto& l = c.lamp;
+  v.Field("backend", l.backend, {"sim", "gpiod"}, true);
+  v.Field("chip", l.chip);
+  v.Field("line", l.line);
+  v.Field("active_low", l.active_low);
+  v.Field("warmup_s", l.warmup_s, Range{0, 600});
+  v.Field("radiance_rgb", l.radiance_rgb, kPositive);
+}
+
+template <typename V>
+void VisitLightFrameSection(Config& c, V& v) {
+  auto& f = c.light_frame;
+  v.Field("h_offset_deg", f.h_offset_deg, kAngle);
+  v.Field("v_offset_deg", f.v_offset_deg, kAngle);
+  v.Field("h_sign", f.h_sign, Range{-1, 1});
+  v.Field("v_sign", f.v_sign, Range{-1, 1});
+  v.Field("lamp_distance_mm", f.lamp_distance_mm, Range{0, 1e7});
+  v.Field("field_height_mm", f.field_height_mm, Range{0, 1e7});
+  // Written only when set: the resolved text (and digest) of a session without it is
+  // what it was before the key existed, so such sessions still resume.
+  v.OptionalField("surface_depth_mm", f.surface_depth_mm, Range{-1e7, 1e7}, 0.0);
+}
+
+template <typename V>
+void VisitProcessSection(Config& c, V& v) {
+  auto& p = c.process;
+  v.Field("response_lambda", p.response_lambda, Range{0, 1e6});
+  v.Field("response_samples", p.response_samples, Range{16, 100000});
+  v.Field("response_poses", p.response_poses, Range{1, 1000});
+  v.Field("hdr_pixel_type", p.hdr_pixel_type, {"half", "float"});
+  // The names of process/io/exr_io.h's ExrCompressionNames() (config is below process; a
+  // test keeps the two lists equal).
+  v.Field("hdr_compression", p.hdr_compression,
+          {"none", "rle", "zips", "zip", "zip-fast", "piz"});
+  v.Field("merge_weighting", p.merge_weighting, {"hat", "photon", "noise"});
+  v.Field("basis", p.basis, {"sh", "hsh", "ptm"});
+  v.Field("fit_method", p.fit_method, {"quadrature", "ls", "rls"});
+  v.OrderField("order", p.order, Range{0, 12});
+  v.Field("max_order", p.max_order, Range{0, 12});
+  v.Field("order_tolerance", p.order_tolerance, Range{0, 1});
+  v.Field("max_condition_number", p.max_condition_number, Range{1, 1e300});
+  v.Field("fit_space", p.fit_space, {"linear", "srgb", "log"});
+  v.Field("model_pixel_type", p.model_pixel_type, {"half", "float"});
+  v.Field("model_compression", p.model_compression,
+          {"none", "rle", "zips", "zip", "zip-fast", "piz"});
+  v.Field("reference_patch_px", p.reference_patch_px, Range{0, 1e6});
+  v.Field("reference_reflectance", p.reference_reflectance, Range{1e-3, 1});
+  v.Field("field_of_view_deg", p.field_of_view_deg, Range{0.1, 360});
+  v.Field("display_min_cd_m2", p.display_min_cd_m2, kPositive);
+  v.Field("display_max_cd_m2", p.display_max_cd_m2, kPositive);
+  v.Field("queue_depth", p.queue_depth, Range{1, 1000});
+  v.Field("threads", p.threads, Range{1, 256});
+}
+
+template <typename V>
+void VisitSimSection(Config& c, V& v) {
+  auto& s = c.sim;
+  v.Field("seed", s.seed, Range{0, 2147483647});
+  v.Field("scene", s.scene, {"matte", "gloss", "sharp", "full"});
+  v.Field("width", s.width, Range{8, 20000});
+  v.Field("height", s.height, Range{8, 20000});
+  v.Field("latency_scale", s.latency_scale, Range{0, 100});
+  v.Field("chrome_spheres", s.chrome_spheres, Range{0, 2});
+  v.Field("matte_sphere", s.matte_sphere);
+  v.Field("lamp_distance_mm", s.lamp_distance_mm, Range{0, 1e7});
+  v.Field("field_height_mm", s.field_height_mm, Range{1e-3, 1e7});
+  VisitSection(v, "camera", false, [&] {
+    auto& k = s.camera;
+    v.Field("gain", k.gain, kPositive);
+    v.Field("full_well", k.full_well, Range{1, 1e9});
+    v.Field("read_noise_e", k.read_noise_e, kNonNegative);
+    v.Field("shot_noise", k.shot_noise);
+    v.Field("response", k.response, {"filmic", "gamma", "linear"});
+    v.Field("response_gamma_rgb", k.response_gamma_rgb, Range{0.2, 5});
+    v.Field("format", k.format, {"jpg", "png"});
+    v.Field("jpeg_quality", k.jpeg_quality, Range{1, 100});
+    v.Field("shutter_min_s", k.shutter_min_s, Range{1e-6, 3600});
+    v.Field("shutter_max_s", k.shutter_max_s, Range{1e-6, 3600});
+    v.Field("download_time_s", k.download_time_s, kNonNegative);
+    v.Field("fail_capture_at", k.fail_capture_at, Range{1, 1e9});
+    v.Field("fail_capture_every", k.fail_capture_every, Range{0, 1e9});
+    v.Field("fail_forever_after", k.fail_forever_after, Range{0, 1e9});
+    v.Field("disconnect_at", k.disconnect_at, Range{0, 1e9});
+    v.Field("disconnect_captures", k.disconnect_captures, Range{1, 1000});
+  });
+  VisitSection(v, "motor", false, [&] {
+    auto& m = s.motor;
+    v.Field("stall_at_move", m.stall_at_move, Range{1, 1e9});
+    v.Field("timeout_at_move", m.timeout_at_move, Range{1, 1e9});
+    v.Field("fail_forever_after", m.fail_forever_after, Range{0, 1e9});
+  });
+  VisitSection(v, "lamp", false, [&] {
+    v.Field("fail_switch_at", s.lamp.fail_switch_at, Range{1, 1e9});
+  });
+}
+
 template <typename V>
 void VisitConfig(Config& c, V& v) {
-  auto section = [&](const std::string& name, bool required, auto&& body) {
-    v.NoteSection(name);
-    v.Section(name, required, body);
-  };
-  section("grid", false, [&] {
-    auto& g = c.grid;
-    v.Field("h_min_deg", g.h_min_deg, kAngle);
-    v.Field("h_max_deg", g.h_max_deg, kAngle);
-    v.Field("h_step_deg", g.h_step_deg, Range{0.01, 360});
-    v.Field("v_min_deg", g.v_min_deg, Range{-90, 90});
-    v.Field("v_max_deg", g.v_max_deg, Range{-90, 90});
-    v.Field("v_step_deg", g.v_step_deg, Range{0.01, 180});
-    v.Field("order", g.order, {"serpentine", "raster"});
-  });
-  section("bracket", true, [&] {
-    auto& b = c.bracket;
-    v.Field("exposure_times_s", b.exposure_times_s, Range{1e-6, 3600}, 1);
-    v.Field("center_s", b.center_s, Range{0, 3600});
-    v.Field("ev_step", b.ev_step, Range{0.1, 6});
-    v.Field("count", b.count, Range{0, 64});
-    v.Field("mode", b.mode, {"fixed", "adaptive"});
-  });
-  section("camera", true, [&] {
-    auto& k = c.camera;
-    v.Field("backend", k.backend, {"sim", "gphoto2"}, true);
-    v.Field("model", k.model);
-    v.Field("port", k.port);
-    v.Field("serial", k.serial);
-    v.Field("iso", k.iso);
-    v.Field("aperture", k.aperture);
-    v.Field("white_balance", k.white_balance);
-    v.Field("capture_target", k.capture_target, {"ram", "card"});
-    v.Field("delete_from_card", k.delete_from_card);
-    v.Field("capture_raw", k.capture_raw);
-    v.Field("format", k.format, {"jpeg", "raw+jpeg", "raw"});
-    v.Field("linear", k.linear);
-    v.Field("retries", k.retries, Range{0, 100});
-    v.Field("retry_backoff_s", k.retry_backoff_s, Range{0, 600});
-    v.Field("call_timeout_s", k.call_timeout_s, Range{0.01, 3600});
-    v.Field("capture_deadline_s", k.capture_deadline_s, Range{0.01, 36000});
-    v.Field("exif_tolerance", k.exif_tolerance, Range{0, 10});
-  });
-  section("motor", true, [&] {
-    auto& m = c.motor;
-    v.Field("backend", m.backend, {"sim", "grbl", "maestro"}, true);
-    v.Field("port", m.port);
-    v.Field("usb_vid_pid", m.usb_vid_pid);
-    v.Field("usb_serial", m.usb_serial);
-    v.Field("baud", m.baud, Range{300, 4000000});
-    v.Field("speed_deg_per_s", m.speed_deg_per_s, kPositive);
-    v.Field("accel_deg_per_s2", m.accel_deg_per_s2, kPositive);
-    v.Field("settle_time_s", m.settle_time_s, Range{0, 60});
-    v.Field("home_on_start", m.home_on_start);
-    v.Field("after_reconnect", m.after_reconnect, {"home", "verify"});
-    v.Field("reply_timeout_s", m.reply_timeout_s, Range{0.01, 600});
-    v.Field("move_timeout_s", m.move_timeout_s, Range{0.01, 3600});
-    v.Field("retries", m.retries, Range{0, 100});
-    v.Field("retry_backoff_s", m.retry_backoff_s, Range{0, 600});
-    v.Field("h_limit_min_deg", m.h_limit_min_deg, kAngle);
-    v.Field("h_limit_max_deg", m.h_limit_max_deg, kAngle);
-    v.Field("v_limit_min_deg", m.v_limit_min_deg, kAngle);
-    v.Field("v_limit_max_deg", m.v_limit_max_deg, kAngle);
-    section("grbl", false, [&] {
-      auto& g = m.grbl;
-      v.Field("h_axis", g.h_axis, {"X", "Y", "Z"});
-      v.Field("v_axis", g.v_axis, {"X", "Y", "Z"});
-      v.Field("units_per_degree", g.units_per_degree, kPositive);
-      v.Field("completion", g.completion, {"dwell", "poll"});
-      v.Field("banner_timeout_s", g.banner_timeout_s, Range{0.01, 60});
-      v.Field("poll_interval_s", g.poll_interval_s, Range{0.001, 10});
-    });
-    section("maestro", false, [&] {
-      auto& s = m.maestro;
-      v.Field("h_channel", s.h_channel, Range{0, 23});
-      v.Field("v_channel", s.v_channel, Range{0, 23});
-      v.Field("h_us_at_zero", s.h_us_at_zero, Range{64, 4080});
-      v.Field("h_us_per_deg", s.h_us_per_deg, Range{-100, 100});
-      v.Field("v_us_at_zero", s.v_us_at_zero, Range{64, 4080});
-      v.Field("v_us_per_deg", s.v_us_per_deg, Range{-100, 100});
-      v.Field("poll_interval_s", s.poll_interval_s, Range{0.001, 10});
-      v.Field("position_tolerance_us", s.position_tolerance_us, Range{0.25, 1000});
-    });
-  });
-  section("lamp", true, [&] {
-    auto& l = c.lamp;
-    v.Field("backend", l.backend, {"sim", "gpiod"}, true);
-    v.Field("chip", l.chip);
-    v.Field("line", l.line);
-    v.Field("active_low", l.active_low);
-    v.Field("warmup_s", l.warmup_s, Range{0, 600});
-    v.Field("radiance_rgb", l.radiance_rgb, kPositive);
-  });
-  section("light_frame", false, [&] {
-    auto& f = c.light_frame;
-    v.Field("h_offset_deg", f.h_offset_deg, kAngle);
-    v.Field("v_offset_deg", f.v_offset_deg, kAngle);
-    v.Field("h_sign", f.h_sign, Range{-1, 1});
-    v.Field("v_sign", f.v_sign, Range{-1, 1});
-    v.Field("lamp_distance_mm", f.lamp_distance_mm, Range{0, 1e7});
-    v.Field("field_height_mm", f.field_height_mm, Range{0, 1e7});
-    // Written only when set: the resolved text (and digest) of a session without it is
-    // what it was before the key existed, so such sessions still resume.
-    v.OptionalField("surface_depth_mm", f.surface_depth_mm, Range{-1e7, 1e7}, 0.0);
-  });
-  section("process", false, [&] {
-    auto& p = c.process;
-    v.Field("response_lambda", p.response_lambda, Range{0, 1e6});
-    v.Field("response_samples", p.response_samples, Range{16, 100000});
-    v.Field("response_poses", p.response_poses, Range{1, 1000});
-    v.Field("hdr_pixel_type", p.hdr_pixel_type, {"half", "float"});
-    // The names of process/io/exr_io.h's ExrCompressionNames() (config is below process; a
-    // test keeps the two lists equal).
-    v.Field("hdr_compression", p.hdr_compression,
-            {"none", "rle", "zips", "zip", "zip-fast", "piz"});
-    v.Field("merge_weighting", p.merge_weighting, {"hat", "photon", "noise"});
-    v.Field("basis", p.basis, {"sh", "hsh", "ptm"});
-    v.Field("fit_method", p.fit_method, {"quadrature", "ls", "rls"});
-    v.OrderField("order", p.order, Range{0, 12});
-    v.Field("max_order", p.max_order, Range{0, 12});
-    v.Field("order_tolerance", p.order_tolerance, Range{0, 1});
-    v.Field("max_condition_number", p.max_condition_number, Range{1, 1e300});
-    v.Field("fit_space", p.fit_space, {"linear", "srgb", "log"});
-    v.Field("model_pixel_type", p.model_pixel_type, {"half", "float"});
-    v.Field("model_compression", p.model_compression,
-            {"none", "rle", "zips", "zip", "zip-fast", "piz"});
-    v.Field("reference_patch_px", p.reference_patch_px, Range{0, 1e6});
-    v.Field("reference_reflectance", p.reference_reflectance, Range{1e-3, 1});
-    v.Field("field_of_view_deg", p.field_of_view_deg, Range{0.1, 360});
-    v.Field("display_min_cd_m2", p.display_min_cd_m2, kPositive);
-    v.Field("display_max_cd_m2", p.display_max_cd_m2, kPositive);
-    v.Field("queue_depth", p.queue_depth, Range{1, 1000});
-    v.Field("threads", p.threads, Range{1, 256});
-  });
-  section("sim", false, [&] {
-    auto& s = c.sim;
-    v.Field("seed", s.seed, Range{0, 2147483647});
-    v.Field("scene", s.scene, {"matte", "gloss", "sharp", "full"});
-    v.Field("width", s.width, Range{8, 20000});
-    v.Field("height", s.height, Range{8, 20000});
-    v.Field("latency_scale", s.latency_scale, Range{0, 100});
-    v.Field("chrome_spheres", s.chrome_spheres, Range{0, 2});
-    v.Field("matte_sphere", s.matte_sphere);
-    v.Field("lamp_distance_mm", s.lamp_distance_mm, Range{0, 1e7});
-    v.Field("field_height_mm", s.field_height_mm, Range{1e-3, 1e7});
-    section("camera", false, [&] {
-      auto& k = s.camera;
-      v.Field("gain", k.gain, kPositive);
-      v.Field("full_well", k.full_well, Range{1, 1e9});
-      v.Field("read_noise_e", k.read_noise_e, kNonNegative);
-      v.Field("shot_noise", k.shot_noise);
-      v.Field("response", k.response, {"filmic", "gamma", "linear"});
-      v.Field("response_gamma_rgb", k.response_gamma_rgb, Range{0.2, 5});
-      v.Field("format", k.format, {"jpg", "png"});
-      v.Field("jpeg_quality", k.jpeg_quality, Range{1, 100});
-      v.Field("shutter_min_s", k.shutter_min_s, Range{1e-6, 3600});
-      v.Field("shutter_max_s", k.shutter_max_s, Range{1e-6, 3600});
-      v.Field("download_time_s", k.download_time_s, kNonNegative);
-      v.Field("fail_capture_at", k.fail_capture_at, Range{1, 1e9});
-      v.Field("fail_capture_every", k.fail_capture_every, Range{0, 1e9});
-      v.Field("fail_forever_after", k.fail_forever_after, Range{0, 1e9});
-      v.Field("disconnect_at", k.disconnect_at, Range{0, 1e9});
-      v.Field("disconnect_captures", k.disconnect_captures, Range{1, 1000});
-    });
-    section("motor", false, [&] {
-      auto& m = s.motor;
-      v.Field("stall_at_move", m.stall_at_move, Range{1, 1e9});
-      v.Field("timeout_at_move", m.timeout_at_move, Range{1, 1e9});
-      v.Field("fail_forever_after", m.fail_forever_after, Range{0, 1e9});
-    });
-    section("lamp", false, [&] {
-      v.Field("fail_switch_at", s.lamp.fail_switch_at, Range{1, 1e9});
-    });
-  });
+  VisitSection(v, "grid", false, [&] { VisitGridSection(c, v); });
+  VisitSection(v, "bracket", true, [&] { VisitBracketSection(c, v); });
+  VisitSection(v, "camera", true, [&] { VisitCameraSection(c, v); });
+  VisitSection(v, "motor", true, [&] { VisitMotorSection(c, v); });
+  VisitSection(v, "lamp", true, [&] { VisitLampSection(c, v); });
+  VisitSection(v, "light_frame", false, [&] { VisitLightFrameSection(c, v); });
+  VisitSection(v, "process", false, [&] { VisitProcessSection(c, v); });
+  VisitSection(v, "sim", false, [&] { VisitSimSection(c, v); });
 }
 
 bool Divides(double span, double step) {

@@ -284,96 +284,88 @@ struct SceneRow {
   std::vector<MethodResult> around;  // sh-rls at chosen-1, chosen, chosen+1
 };
 
-}  // namespace
+// The HDR trials: on every bracket, then the stability sweeps on the first image.
+struct HdrTrials {
+  std::vector<HdrTrial> main, exposures, noise;
+};
 
-Result<EvaluationReport> RunEvaluation(const EvaluationRequest& request) {
-  auto progress = [&](const std::string& line) {
-    if (request.progress) request.progress(line);
-  };
-  const fs::path& out = request.out;
-  if (fs::exists(out / "report.md")) return MakeError(ErrorCode::kInvalidInput, out.string(), "holds a report already; choose another --out");
-  std::error_code ec;
-  fs::create_directories(out, ec);
-  if (ec) return MakeError(ErrorCode::kIo, out.string(), "{}", ec.message());
-  auto log = Log("evaluate");
-  const auto t_start = Clock::now();
-
-  // ---- The session(s) ----
-  Config base;
-  std::vector<std::string> scenes;
-  fs::path main_session = request.session;
-  if (request.dry_run) {
-    ConfigResult cfg = LoadConfigOrBuiltIn(request.config_path);
-    if (!cfg.ok()) return cfg.AsError();
-    base = cfg.config;
-    base.sim.width = request.width;
-    base.sim.height = request.height;
-    scenes = request.quick ? std::vector<std::string>{"matte", "full"}
-                   : std::vector<std::string>{"matte", "gloss", "sharp", "full"};
-    for (const auto& scene : scenes) {
-      Config c = base;
-      c.sim.scene = scene;
-      const fs::path dir = out / "sessions" / scene;
-      if (fs::exists(dir / "session.toml")) continue;  // an earlier, interrupted evaluation
-      progress(fmt::format("simulating session '{}' ({}x{})...", scene, request.width, request.height));
-      if (Status st = RunSimulatedSession(c, dir); !st.ok()) return st.error().Within(dir.string());
-    }
-    main_session = out / "sessions" / "full";
+// A dry run: every scene simulated under out/sessions/<scene> (sessions left by an
+// interrupted evaluation reused); *scenes receives their names.
+Status SimulateScenes(const EvaluationRequest& request, std::vector<std::string>* scenes) {
+  ConfigResult cfg = LoadConfigOrBuiltIn(request.config_path);
+  if (!cfg.ok()) return cfg.AsError();
+  Config base = cfg.config;
+  base.sim.width = request.width;
+  base.sim.height = request.height;
+  *scenes = request.quick ? std::vector<std::string>{"matte", "full"}
+                          : std::vector<std::string>{"matte", "gloss", "sharp", "full"};
+  for (const auto& scene : *scenes) {
+    Config c = base;
+    c.sim.scene = scene;
+    const fs::path dir = request.out / "sessions" / scene;
+    if (fs::exists(dir / "session.toml")) continue;  // an earlier, interrupted evaluation
+    if (request.progress)
+      request.progress(fmt::format("simulating session '{}' ({}x{})...", scene, request.width,
+                                   request.height));
+    if (Status st = RunSimulatedSession(c, dir); !st.ok()) return st.error().Within(dir.string());
   }
-  auto loaded = LoadSession(main_session);
-  if (!loaded.ok()) return loaded.error();
+  return Ok();
+}
 
-  // ---- Models ----
-  progress(fmt::format("evaluating every model on {}...", main_session.string()));
-  auto methods = EvaluateMethods(loaded->input);
-  if (!methods.ok()) return methods.error();
-  Status st = WriteText(out / "methods.csv", MethodsCsv(*methods));
-  if (st.ok()) st = WriteText(out / "methods.md", MethodsMarkdown(*methods));
-  if (st.ok()) st = WritePng(out / "error_vs_time.png", ChartErrorVsTime(*methods));
-  if (st.ok()) st = WritePng(out / "error_vs_storage.png", ChartErrorVsStorage(*methods));
-  if (st.ok()) st = WritePng(out / "condition_vs_order.png", ChartConditionVsOrder(*methods));
-  if (st.ok() && methods->has_truth) st = WritePng(out / "extrapolation.png", ChartExtrapolation(*methods));
-  if (!st.ok()) return st.error();
+// Every model's table and charts.
+Status WriteMethodOutputs(const fs::path& out, const MethodEvaluation& methods) {
+  RIG_TRY(WriteText(out / "methods.csv", MethodsCsv(methods)));
+  RIG_TRY(WriteText(out / "methods.md", MethodsMarkdown(methods)));
+  RIG_TRY(WritePng(out / "error_vs_time.png", ChartErrorVsTime(methods)));
+  RIG_TRY(WritePng(out / "error_vs_storage.png", ChartErrorVsStorage(methods)));
+  RIG_TRY(WritePng(out / "condition_vs_order.png", ChartConditionVsOrder(methods)));
+  if (methods.has_truth) RIG_TRY(WritePng(out / "extrapolation.png", ChartExtrapolation(methods)));
+  return Ok();
+}
 
-  // ---- Scenes of growing complexity ----
-  std::vector<SceneRow> scene_rows;
+// Scenes of growing complexity: the order chosen on each, and SH-rls around it.
+Result<std::vector<SceneRow>> SceneRows(const fs::path& out, const std::vector<std::string>& scenes,
+                                        const MethodEvaluation& full) {
+  std::vector<SceneRow> rows;
   for (const auto& scene : scenes) {
-    auto s = LoadSession(out / "sessions" / scene);
-    if (!s.ok()) return s.error();
-    auto e = scene == "full" ? methods : EvaluateMethods(s->input);
+    RIG_ASSIGN_OR_RETURN(LoadedSession s, LoadSession(out / "sessions" / scene));
+    Result<MethodEvaluation> e = scene == "full" ? Result<MethodEvaluation>(full) : EvaluateMethods(s.input);
     if (!e.ok()) return e.error();
     SceneRow row{scene, -1, {}};
     for (const auto& r : e->rows)
       if (r.selected) row.chosen = r.order;
     for (const auto& r : e->rows)
       if (r.basis == "sh" && r.method == "rls" && std::abs(r.order - row.chosen) <= 1) row.around.push_back(r);
-    scene_rows.push_back(row);
+    rows.push_back(row);
   }
+  return rows;
+}
 
-  // ---- HDR methods ----
-  progress("evaluating HDR methods...");
-  std::vector<HdrTrial> hdr_main, hdr_exposures, hdr_noise;
-  if (loaded->truth) {
-    // Simulated brackets of the main session, as the camera stored them.
-    auto main = Session::OpenExisting(main_session);
-    auto jobs = main.ok() ? CompleteBrackets(*main) : Result<std::vector<BracketJob>>(main.error());
-    if (jobs.ok()) {
-      const std::vector<std::string> poses = {"h000_v00", "h040_v20", "h090_v30"};
-      for (auto& job : *jobs) {
-        if (std::find(poses.begin(), poses.end(), job.pose.Name()) == poses.end()) continue;
-        std::vector<std::string> files;
-        std::vector<Seconds> times;
-        for (size_t i = 0; i < job.files.size(); ++i) {
-          files.push_back(job.files[i].string());
-          times.push_back(Seconds(job.exposures_s[i]));
-        }
-        auto bracket = DecodeFrames(files, times);
-        auto truth = ReadRgbExr((main_session / "truth" / "radiance" / (job.pose.Name() + ".exr")).string());
-        if (!bracket.ok() || !truth.ok()) continue;
-        for (auto& t : CompareHdr("sim " + job.pose.Name(), *bracket, *truth, 1)) hdr_main.push_back(t);
-      }
+// HDR methods on the simulated brackets of the main session, as the camera stored them.
+void SimulatedBracketTrials(const fs::path& main_session, std::vector<HdrTrial>* trials) {
+  auto main = Session::OpenExisting(main_session);
+  auto jobs = main.ok() ? CompleteBrackets(*main) : Result<std::vector<BracketJob>>(main.error());
+  if (!jobs.ok()) return;
+  const std::vector<std::string> poses = {"h000_v00", "h040_v20", "h090_v30"};
+  for (auto& job : *jobs) {
+    if (std::find(poses.begin(), poses.end(), job.pose.Name()) == poses.end()) continue;
+    std::vector<std::string> files;
+    std::vector<Seconds> times;
+    for (size_t i = 0; i < job.files.size(); ++i) {
+      files.push_back(job.files[i].string());
+      times.push_back(Seconds(job.exposures_s[i]));
     }
+    auto bracket = DecodeFrames(files, times);
+    auto truth = ReadRgbExr((main_session / "truth" / "radiance" / (job.pose.Name() + ".exr")).string());
+    if (!bracket.ok() || !truth.ok()) continue;
+    for (auto& t : CompareHdr("sim " + job.pose.Name(), *bracket, *truth, 1)) trials->push_back(t);
   }
+}
+
+// Real HDR images as truth, and always one synthetic radiance image (4.5 decades, with a
+// saturated and a black spot) so that the comparison never depends on the folder.
+std::vector<std::pair<std::string, cv::Mat>> HdrTruths(const EvaluationRequest& request) {
+  auto log = Log("evaluate");
   std::vector<fs::path> images;
   if (fs::is_directory(request.hdr_images)) {
     for (const auto& e : fs::directory_iterator(request.hdr_images)) {
@@ -386,8 +378,6 @@ Result<EvaluationReport> RunEvaluation(const EvaluationRequest& request) {
   }
   if (request.quick && images.size() > 1) images.resize(1);
   const int max_width = request.quick ? 256 : 640;
-  // Real HDR images as truth, and always one synthetic radiance image (4.5 decades, with a
-  // saturated and a black spot) so that the comparison never depends on the folder.
   std::vector<std::pair<std::string, cv::Mat>> truths;
   for (const auto& path : images) {
     auto truth = LoadHdrTruth(path, max_width);
@@ -398,29 +388,43 @@ Result<EvaluationReport> RunEvaluation(const EvaluationRequest& request) {
     truths.push_back({path.filename().string(), *truth});
   }
   truths.push_back({"synthetic", synth::SyntheticRadiance(max_width, max_width * 3 / 4)});
-  for (const auto& [name, truth_image] : truths) {
-    const cv::Mat* truth = &truth_image;
-    for (auto& t : CompareHdr(name, BracketFor(*truth, 7, 1, 11), *truth, 1)) hdr_main.push_back(t);
-    if (name != truths.front().first) continue;
-    // Stability on the first image: the number of exposures, then the noise level.
-    for (int n : request.quick ? std::vector<int>{2, 5} : std::vector<int>{2, 3, 4, 5, 7, 9, 12})
-      for (auto& t : CompareHdr(name, BracketFor(*truth, n, 1, 11), *truth, 1)) hdr_exposures.push_back(t);
-    for (double noise : request.quick ? std::vector<double>{1, 8} : std::vector<double>{0.25, 1, 2, 4, 8, 16})
-      for (auto& t : CompareHdr(name, BracketFor(*truth, 7, noise, 11), *truth, noise)) hdr_noise.push_back(t);
-  }
-  std::vector<HdrTrial> all_hdr = hdr_main;
-  all_hdr.insert(all_hdr.end(), hdr_exposures.begin(), hdr_exposures.end());
-  all_hdr.insert(all_hdr.end(), hdr_noise.begin(), hdr_noise.end());
-  st = WriteText(out / "hdr_methods.csv", HdrCsv(all_hdr));
-  if (st.ok() && !hdr_main.empty()) st = WritePng(out / "hdr_time_vs_error.png", HdrSpeedChart(hdr_main));
-  if (st.ok() && !hdr_exposures.empty())
-    st = WritePng(out / "hdr_error_vs_exposures.png", HdrChart(hdr_exposures, false, "HDR stability: error against the number of exposures"));
-  if (st.ok() && !hdr_noise.empty())
-    st = WritePng(out / "hdr_error_vs_noise.png", HdrChart(hdr_noise, true, "HDR stability: error against sensor noise"));
-  if (!st.ok()) return st.error();
+  return truths;
+}
 
-  // ---- Findings, from the numbers above ----
-  const auto& rows = methods->rows;
+// Every HDR method on every truth's bracket; on the first, the stability sweeps: the number
+// of exposures, then the noise level.
+HdrTrials RunHdrTrials(const EvaluationRequest& request, const fs::path& main_session, bool truth) {
+  HdrTrials trials;
+  if (truth) SimulatedBracketTrials(main_session, &trials.main);
+  const auto truths = HdrTruths(request);
+  for (const auto& [name, truth_image] : truths) {
+    const cv::Mat* t_img = &truth_image;
+    for (auto& t : CompareHdr(name, BracketFor(*t_img, 7, 1, 11), *t_img, 1)) trials.main.push_back(t);
+    if (name != truths.front().first) continue;
+    for (int n : request.quick ? std::vector<int>{2, 5} : std::vector<int>{2, 3, 4, 5, 7, 9, 12})
+      for (auto& t : CompareHdr(name, BracketFor(*t_img, n, 1, 11), *t_img, 1)) trials.exposures.push_back(t);
+    for (double noise : request.quick ? std::vector<double>{1, 8} : std::vector<double>{0.25, 1, 2, 4, 8, 16})
+      for (auto& t : CompareHdr(name, BracketFor(*t_img, 7, noise, 11), *t_img, noise)) trials.noise.push_back(t);
+  }
+  return trials;
+}
+
+Status WriteHdrOutputs(const fs::path& out, const HdrTrials& hdr) {
+  std::vector<HdrTrial> all_hdr = hdr.main;
+  all_hdr.insert(all_hdr.end(), hdr.exposures.begin(), hdr.exposures.end());
+  all_hdr.insert(all_hdr.end(), hdr.noise.begin(), hdr.noise.end());
+  RIG_TRY(WriteText(out / "hdr_methods.csv", HdrCsv(all_hdr)));
+  if (!hdr.main.empty()) RIG_TRY(WritePng(out / "hdr_time_vs_error.png", HdrSpeedChart(hdr.main)));
+  if (!hdr.exposures.empty())
+    RIG_TRY(WritePng(out / "hdr_error_vs_exposures.png", HdrChart(hdr.exposures, false, "HDR stability: error against the number of exposures")));
+  if (!hdr.noise.empty())
+    RIG_TRY(WritePng(out / "hdr_error_vs_noise.png", HdrChart(hdr.noise, true, "HDR stability: error against sensor noise")));
+  return Ok();
+}
+
+// Findings on the models, from the numbers above.
+std::string ModelFindings(const MethodEvaluation& methods) {
+  const auto& rows = methods.rows;
   auto best_of = [&](const std::string& name) -> const MethodResult* {
     const MethodResult* b = nullptr;
     for (const auto& r : rows)
@@ -431,7 +435,7 @@ Result<EvaluationReport> RunEvaluation(const EvaluationRequest& request) {
   for (const auto& r : rows)
     if (r.selected) selected = &r;
   std::string findings;
-  const std::string err_kind = methods->has_truth ? "error against the truth at held-out lamps" : "leave-one-out error";
+  const std::string err_kind = methods.has_truth ? "error against the truth at held-out lamps" : "leave-one-out error";
   if (const auto *q = best_of("sh-quadrature"), *r = best_of("sh-rls"); q && r) {
     findings += fmt::format("- The paper's quadrature on this partial-sphere grid reaches at best {:.3f} relative {} (order {}); regularised least squares reaches {:.4f} (order {}), {:.0f}x less.\n",
                             q->Error(), err_kind, q->order, r->Error(), r->order, q->Error() / r->Error());
@@ -446,15 +450,21 @@ Result<EvaluationReport> RunEvaluation(const EvaluationRequest& request) {
   }
   if (selected) {
     findings += fmt::format("- The automatic choice is {} ({} terms, {:g} bytes/pixel): {} of {:.4f}, fitted in {:.3f} s; it is {} the error-against-time Pareto front.\n",
-                            methods->selected, selected->terms, selected->bytes_per_pixel, err_kind, selected->Error(), selected->fit_time_s,
+                            methods.selected, selected->terms, selected->bytes_per_pixel, err_kind, selected->Error(), selected->fit_time_s,
                             selected->pareto_time ? "on" : "not on");
   }
-  if (methods->has_truth && selected) {
+  if (methods.has_truth && selected) {
     findings += fmt::format("- Pixels shadowed at some sampled lamp ({} px) carry {:.3f} relative error with the chosen model against {:.3f} on always-lit pixels ({} px): attached and cast shadows are not band-limited.\n",
-                            methods->shadowed_pixels, selected->truth_relative_shadowed, selected->truth_relative_lit, methods->lit_pixels);
+                            methods.shadowed_pixels, selected->truth_relative_shadowed, selected->truth_relative_lit, methods.lit_pixels);
     findings += fmt::format("- Beyond the sampled lamp region the chosen model's error grows to {:.3f} (extrapolation.png); `rig render` refuses such lamps unless --extrapolate.\n",
                             selected->extrapolation_relative);
   }
+  return findings;
+}
+
+// Findings on the HDR methods.
+std::string HdrFindings(const HdrTrials& hdr) {
+  std::string findings;
   auto mean_of = [&](const std::vector<HdrTrial>& ts, const std::string& m, double HdrTrial::*f) {
     double s = 0;
     int n = 0;
@@ -462,48 +472,55 @@ Result<EvaluationReport> RunEvaluation(const EvaluationRequest& request) {
       if (t.method == m && std::isfinite(t.*f)) s += t.*f, ++n;
     return n ? s / n : kNan;
   };
-  if (!hdr_main.empty()) {
-    const auto brackets = std::count_if(hdr_main.begin(), hdr_main.end(), [](const HdrTrial& t) { return t.method == "ours"; });
+  if (!hdr.main.empty()) {
+    const auto& m = hdr.main;
+    const auto brackets = std::count_if(m.begin(), m.end(), [](const HdrTrial& t) { return t.method == "ours"; });
     findings += fmt::format("- HDR, mean over {} brackets: ours {:.4f} log-radiance RMS error in {:.3f} s (photon weights {:.4f}, hat weights {:.4f}); OpenCV Debevec {:.4f} in {:.3f} s; Robertson {:.4f} in {:.3f} s.\n",
-                            brackets, mean_of(hdr_main, "ours", &HdrTrial::log_rms), mean_of(hdr_main, "ours", &HdrTrial::time_s),
-                            mean_of(hdr_main, "ours-photon", &HdrTrial::log_rms), mean_of(hdr_main, "ours-hat", &HdrTrial::log_rms),
-                            mean_of(hdr_main, "opencv-debevec", &HdrTrial::log_rms), mean_of(hdr_main, "opencv-debevec", &HdrTrial::time_s),
-                            mean_of(hdr_main, "opencv-robertson", &HdrTrial::log_rms), mean_of(hdr_main, "opencv-robertson", &HdrTrial::time_s));
+                            brackets, mean_of(m, "ours", &HdrTrial::log_rms), mean_of(m, "ours", &HdrTrial::time_s),
+                            mean_of(m, "ours-photon", &HdrTrial::log_rms), mean_of(m, "ours-hat", &HdrTrial::log_rms),
+                            mean_of(m, "opencv-debevec", &HdrTrial::log_rms), mean_of(m, "opencv-debevec", &HdrTrial::time_s),
+                            mean_of(m, "opencv-robertson", &HdrTrial::log_rms), mean_of(m, "opencv-robertson", &HdrTrial::time_s));
   }
-  if (!hdr_exposures.empty()) {
-    // The trial of method `m` on the same bracket as `key` (same data, exposures and noise).
-    auto on_same = [](const std::vector<HdrTrial>& ts, const HdrTrial& key, const char* m) -> const HdrTrial* {
-      for (const auto& t : ts)
-        if (t.dataset == key.dataset && t.exposures == key.exposures && t.noise == key.noise && t.method == m) return &t;
-      return nullptr;
-    };
-    auto cell = [](const HdrTrial* t) -> std::string {
-      if (!t) return "not run";
-      return t->failure.empty() ? fmt::format("{:.4f}", t->log_rms) : "fails (" + t->failure.substr(0, 60) + "...)";
-    };
-    const HdrTrial& fewest = hdr_exposures.front();
-    findings += fmt::format("- With only {} exposures: ours {}, Debevec {}, Robertson {} (hdr_error_vs_exposures.png).\n",
-                            fewest.exposures, cell(on_same(hdr_exposures, fewest, "ours")),
-                            cell(on_same(hdr_exposures, fewest, "opencv-debevec")),
-                            cell(on_same(hdr_exposures, fewest, "opencv-robertson")));
-    if (!hdr_noise.empty()) {
-      const HdrTrial& noisiest = hdr_noise.back();
-      findings += fmt::format("- At {:g}x the default noise: ours {}, photon weights {}, Debevec {}, Robertson {} (hdr_error_vs_noise.png).\n",
-                              noisiest.noise, cell(on_same(hdr_noise, noisiest, "ours")),
-                              cell(on_same(hdr_noise, noisiest, "ours-photon")),
-                              cell(on_same(hdr_noise, noisiest, "opencv-debevec")),
-                              cell(on_same(hdr_noise, noisiest, "opencv-robertson")));
-    }
+  if (hdr.exposures.empty()) return findings;
+  // The trial of method `m` on the same bracket as `key` (same data, exposures and noise).
+  auto on_same = [](const std::vector<HdrTrial>& ts, const HdrTrial& key, const char* m) -> const HdrTrial* {
+    for (const auto& t : ts)
+      if (t.dataset == key.dataset && t.exposures == key.exposures && t.noise == key.noise && t.method == m) return &t;
+    return nullptr;
+  };
+  auto cell = [](const HdrTrial* t) -> std::string {
+    if (!t) return "not run";
+    return t->failure.empty() ? fmt::format("{:.4f}", t->log_rms) : "fails (" + t->failure.substr(0, 60) + "...)";
+  };
+  const HdrTrial& fewest = hdr.exposures.front();
+  findings += fmt::format("- With only {} exposures: ours {}, Debevec {}, Robertson {} (hdr_error_vs_exposures.png).\n",
+                          fewest.exposures, cell(on_same(hdr.exposures, fewest, "ours")),
+                          cell(on_same(hdr.exposures, fewest, "opencv-debevec")),
+                          cell(on_same(hdr.exposures, fewest, "opencv-robertson")));
+  if (!hdr.noise.empty()) {
+    const HdrTrial& noisiest = hdr.noise.back();
+    findings += fmt::format("- At {:g}x the default noise: ours {}, photon weights {}, Debevec {}, Robertson {} (hdr_error_vs_noise.png).\n",
+                            noisiest.noise, cell(on_same(hdr.noise, noisiest, "ours")),
+                            cell(on_same(hdr.noise, noisiest, "ours-photon")),
+                            cell(on_same(hdr.noise, noisiest, "opencv-debevec")),
+                            cell(on_same(hdr.noise, noisiest, "opencv-robertson")));
   }
+  return findings;
+}
 
+// report.md: the findings, every model, the scenes, the HDR methods.
+std::string EvaluationMarkdown(const fs::path& main_session, const LoadedSession& loaded,
+                               const MethodEvaluation& methods,
+                               const std::vector<SceneRow>& scene_rows, const HdrTrials& hdr,
+                               const std::string& findings, double seconds) {
   std::string report = fmt::format("# Evaluation: speed against accuracy\n\nData: {}{} ({} poses, {}x{}). Made by `rig evaluate` in {:.0f} s.\n\n## Findings\n\n{}\n",
-                                   main_session.string(), methods->has_truth ? " (simulated: truth known)" : "",
-                                   loaded->input.radiance.size(), loaded->input.radiance[0].cols, loaded->input.radiance[0].rows,
-                                   Since(t_start), findings);
+                                   main_session.string(), methods.has_truth ? " (simulated: truth known)" : "",
+                                   loaded.input.radiance.size(), loaded.input.radiance[0].cols, loaded.input.radiance[0].rows,
+                                   seconds, findings);
   report += "## Every model\n\n![error against time](error_vs_time.png)\n\n![error against storage](error_vs_storage.png)\n\n";
-  report += MethodsMarkdown(*methods);
+  report += MethodsMarkdown(methods);
   report += "\nRelative errors: RMS of (model ρ − reference) over RMS of the reference, all pixels and colours; LOO = leave-one-out over the sampled poses. Render time: ρ of every pixel for one lamp.\n\n![condition](condition_vs_order.png)\n\n";
-  if (methods->has_truth) report += "![extrapolation](extrapolation.png)\n\n";
+  if (methods.has_truth) report += "![extrapolation](extrapolation.png)\n\n";
   if (!scene_rows.empty()) {
     report += "## No more model than the scene needs\n\nSH, regularised least squares, order chosen from leave-one-out error (smallest within the tolerance of the best):\n\n| scene | chosen order | order | terms | bytes/px | fit s | LOO rel. | truth rel. |\n|---|---|---|---|---|---|---|---|\n";
     for (const auto& s : scene_rows)
@@ -514,10 +531,41 @@ Result<EvaluationReport> RunEvaluation(const EvaluationRequest& request) {
     report += "\n";
   }
   report += "## HDR methods\n\nEach method recovers its own response from the bracket, then merges it. Error: log-radiance RMS on pixels some exposure records well, offset per channel removed (radiance is relative).\n\n![hdr](hdr_time_vs_error.png)\n\n";
-  report += HdrTable(hdr_main);
-  if (!hdr_exposures.empty()) report += "\n![exposures](hdr_error_vs_exposures.png)\n\n![noise](hdr_error_vs_noise.png)\n\n" + HdrTable(hdr_exposures) + "\n" + HdrTable(hdr_noise);
-  st = WriteText(out / "report.md", report);
-  if (!st.ok()) return st.error();
+  report += HdrTable(hdr.main);
+  if (!hdr.exposures.empty()) report += "\n![exposures](hdr_error_vs_exposures.png)\n\n![noise](hdr_error_vs_noise.png)\n\n" + HdrTable(hdr.exposures) + "\n" + HdrTable(hdr.noise);
+  return report;
+}
+
+}  // namespace
+
+Result<EvaluationReport> RunEvaluation(const EvaluationRequest& request) {
+  auto progress = [&](const std::string& line) {
+    if (request.progress) request.progress(line);
+  };
+  const fs::path& out = request.out;
+  if (fs::exists(out / "report.md")) return MakeError(ErrorCode::kInvalidInput, out.string(), "holds a report already; choose another --out");
+  std::error_code ec;
+  fs::create_directories(out, ec);
+  if (ec) return MakeError(ErrorCode::kIo, out.string(), "{}", ec.message());
+  const auto t_start = Clock::now();
+
+  std::vector<std::string> scenes;
+  fs::path main_session = request.session;
+  if (request.dry_run) {
+    RIG_TRY(SimulateScenes(request, &scenes));
+    main_session = out / "sessions" / "full";
+  }
+  RIG_ASSIGN_OR_RETURN(LoadedSession loaded, LoadSession(main_session));
+  progress(fmt::format("evaluating every model on {}...", main_session.string()));
+  RIG_ASSIGN_OR_RETURN(MethodEvaluation methods, EvaluateMethods(loaded.input));
+  RIG_TRY(WriteMethodOutputs(out, methods));
+  RIG_ASSIGN_OR_RETURN(std::vector<SceneRow> scene_rows, SceneRows(out, scenes, methods));
+  progress("evaluating HDR methods...");
+  const HdrTrials hdr = RunHdrTrials(request, main_session, loaded.truth != nullptr);
+  RIG_TRY(WriteHdrOutputs(out, hdr));
+  const std::string findings = ModelFindings(methods) + HdrFindings(hdr);
+  RIG_TRY(WriteText(out / "report.md", EvaluationMarkdown(main_session, loaded, methods, scene_rows,
+                                                           hdr, findings, Since(t_start))));
   return EvaluationReport{findings, out / "report.md"};
 }
 

@@ -10,7 +10,7 @@
 #include "config/log.h"
 #include "process/io/exr_io.h"
 #include "process/io/image_io.h"
-#include "process/model/fit.h"
+#include "process/model/harmonic/fit.h"
 
 namespace rig {
 namespace {

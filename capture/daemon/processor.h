@@ -20,7 +20,7 @@
 
 #include "config/config.h"
 #include "process/hdr/hdr.h"
-#include "process/model/map_store.h"
+#include "process/model/session/map_store.h"
 #include "capture/plan/pose.h"
 #include "capture/session/session_store.h"
 

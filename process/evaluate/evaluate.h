@@ -14,8 +14,8 @@
 #include <opencv2/core.hpp>
 
 #include "config/result.h"
-#include "process/model/fit.h"
-#include "process/model/model.h"
+#include "process/model/harmonic/fit.h"
+#include "process/model/harmonic/model.h"
 
 namespace rig {
 

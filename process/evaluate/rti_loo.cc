@@ -12,9 +12,10 @@
 #include <unistd.h>
 
 #include "process/evaluate/plot.h"
+#include "process/model/any/load_model.h"
 #include "process/model/holdout.h"
-#include "process/model/neural.h"
-#include "process/model/rti.h"
+#include "process/model/neural/neural.h"
+#include "process/model/harmonic/loo.h"
 
 namespace rig {
 namespace {

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "config/result.h"
-#include "process/model/rti_fit.h"
+#include "process/model/any/rti_fit.h"
 
 namespace rig {
 

@@ -8,7 +8,7 @@
 #include <Eigen/Dense>
 #include <fmt/format.h>
 
-#include "process/model/fit.h"
+#include "process/model/harmonic/fit.h"
 
 namespace rig {
 namespace {

@@ -10,7 +10,7 @@
 
 #include "config/result.h"
 #include "process/export/relight_coefficients.h"
-#include "process/model/model.h"
+#include "process/model/harmonic/model.h"
 #include "process/model/reflectance_model.h"
 
 namespace rig {

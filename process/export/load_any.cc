@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "process/export/relight_coefficients.h"
+#include "process/model/any/load_model.h"
 #include "process/export/relight_files.h"
 
 namespace rig {

@@ -7,6 +7,7 @@
 
 #include "config/result.h"
 #include "process/model/reflectance_model.h"
+#include "process/model/any/load_model.h"
 
 namespace rig {
 

@@ -8,7 +8,7 @@
 #include <fmt/format.h>
 
 #include "process/export/relight_files.h"
-#include "process/model/fit.h"
+#include "process/model/harmonic/fit.h"
 
 namespace rig {
 namespace {

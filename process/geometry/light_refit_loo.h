@@ -12,8 +12,8 @@
 
 #include "config/result.h"
 #include "process/geometry/light_stack.h"
-#include "process/model/pca_choice.h"
-#include "process/model/rti_fit.h"
+#include "process/model/pca/pca_choice.h"
+#include "process/model/any/rti_fit.h"
 
 namespace rig {
 

@@ -2,7 +2,7 @@
 #include "process/geometry/light_stack.h"
 
 #include "process/io/exr_io.h"
-#include "process/model/rti.h"
+#include "process/model/harmonic/loo.h"
 
 namespace rig {
 

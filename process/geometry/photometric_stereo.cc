@@ -11,7 +11,7 @@
 
 #include "process/io/exr_io.h"
 #include "process/io/image_io.h"
-#include "process/model/fit.h"
+#include "process/model/harmonic/fit.h"
 
 namespace rig {
 namespace {

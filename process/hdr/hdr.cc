@@ -578,13 +578,133 @@ double NoiseModel::Variance(const ResponseCurve& r, int c, int z) const {
   return quant[c] * slope * slope + shot[c] * e + read[c] * e * e;
 }
 
+namespace {
+
+// Squared differences of neighbouring exposures binned by the pair of levels (8-bit: every
+// pair; 16-bit: 256 bins a side): the count, the mean d^2 and the mean features of each bin.
+struct NoiseBin {
+  double n = 0, d2 = 0, f[3] = {0, 0, 0};
+};
+
+// One channel's bins over every neighbouring pair of frames, every `row_step`-th row; the
+// samples binned are counted in *count.
+std::vector<NoiseBin> NoiseBins(std::span<const LdrFrame> frames, const ResponseCurve& response,
+                                int c, int lo, int hi, int row_step, int64_t* count) {
+  const auto& g = response.log_exposure[c];
+  const int levels = response.levels;
+  const bool sixteen = levels == 65536;
+  const int n = int(frames.size());
+  const int w = frames[0].image.cols, h = frames[0].image.rows;
+  // The three features of each level (NoiseModel::Variance with unit coefficients).
+  std::vector<std::array<double, 3>> feature(levels);
+  for (int z = 0; z < levels; ++z) {
+    const int z0 = std::max(z - 1, 0), z1 = std::min(z + 1, levels - 1);
+    const double slope = (g[z1] - g[z0]) / std::max(1, z1 - z0);
+    const double e = std::exp(-(g[z] - g[levels / 2]));
+    feature[z] = {slope * slope, e, e * e};
+  }
+  const int shift = sixteen ? 8 : 0;
+  std::vector<NoiseBin> bins(256 * 256);
+  *count = 0;
+  for (int j = 0; j + 1 < n; ++j) {
+    const double lt0 = std::log(frames[j].exposure.count()), lt1 = std::log(frames[j + 1].exposure.count());
+    for (int y = j % row_step; y < h; y += row_step) {
+      for (int x = 0; x < w; ++x) {
+        int z0, z1;
+        if (sixteen) {
+          z0 = frames[j].image.ptr<uint16_t>(y)[3 * x + c];
+          z1 = frames[j + 1].image.ptr<uint16_t>(y)[3 * x + c];
+        } else {
+          z0 = frames[j].image.ptr<uint8_t>(y)[3 * x + c];
+          z1 = frames[j + 1].image.ptr<uint8_t>(y)[3 * x + c];
+        }
+        if (z0 <= lo || z0 >= hi || z1 <= lo || z1 >= hi) continue;
+        const double d = (g[z0] - lt0) - (g[z1] - lt1);
+        // Not noise: motion, a flicker (raising this to 1.5 or 3 changes nothing measurable).
+        if (std::abs(d) > 0.7) continue;
+        NoiseBin& bin = bins[(z0 >> shift) * 256 + (z1 >> shift)];
+        bin.n += 1;
+        bin.d2 += d * d;
+        for (int i = 0; i < 3; ++i) bin.f[i] += feature[z0][i] + feature[z1][i];
+        ++*count;
+      }
+    }
+  }
+  return bins;
+}
+
+// A non-negative least squares in three unknowns: the best of the 7 subsets of terms whose
+// unconstrained solution is non-negative (columns scaled for conditioning).
+Eigen::Vector3d NonNegativeSolve3(const Eigen::Matrix3d& a, const Eigen::Vector3d& b, double yy) {
+  Eigen::Vector3d scale;
+  for (int i = 0; i < 3; ++i) scale(i) = a(i, i) > 0 ? 1.0 / std::sqrt(a(i, i)) : 0.0;
+  const Eigen::Matrix3d as = scale.asDiagonal() * a * scale.asDiagonal();
+  const Eigen::Vector3d bs = scale.cwiseProduct(b);
+  double best = std::numeric_limits<double>::infinity();
+  Eigen::Vector3d next = Eigen::Vector3d::Zero();
+  for (int mask = 1; mask < 8; ++mask) {
+    std::vector<int> idx;
+    for (int i = 0; i < 3; ++i)
+      if ((mask >> i & 1) && scale(i) > 0) idx.push_back(i);
+    if (idx.empty()) continue;
+    const int q = int(idx.size());
+    Eigen::MatrixXd sub(q, q);
+    Eigen::VectorXd rhs(q);
+    for (int u = 0; u < q; ++u) {
+      rhs(u) = bs(idx[u]);
+      for (int v = 0; v < q; ++v) sub(u, v) = as(idx[u], idx[v]);
+    }
+    const Eigen::VectorXd sol = sub.ldlt().solve(rhs);
+    if (!sol.allFinite() || (sol.array() < 0).any()) continue;
+    Eigen::Vector3d t = Eigen::Vector3d::Zero();
+    for (int u = 0; u < q; ++u) t(idx[u]) = sol(u);
+    const double residual = yy - 2 * t.dot(bs) + t.dot(as * t);
+    if (residual < best) {
+      best = residual;
+      next = t;
+    }
+  }
+  return next.cwiseProduct(scale);
+}
+
+// Iteratively reweighted least squares: a bin's mean d^2 has variance 2 v^2 / n under
+// Gaussian noise, so it weighs n / v^2 with v the current prediction (the first pass weighs
+// by n alone). False when no pass gives positive terms.
+bool FitNoiseTerms(const std::vector<const NoiseBin*>& used, Eigen::Vector3d* theta) {
+  *theta = Eigen::Vector3d::Zero();
+  bool have = false;
+  for (int pass = 0; pass < 5; ++pass) {
+    Eigen::Matrix3d a = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    double yy = 0;
+    for (const NoiseBin* bin : used) {
+      const Eigen::Vector3d f(bin->f[0], bin->f[1], bin->f[2]);
+      double wt = bin->n;
+      if (have) {
+        const double v = theta->dot(f);
+        if (!(v > 0)) continue;
+        wt /= v * v;
+      }
+      a += wt * f * f.transpose();
+      b += wt * bin->d2 * f;
+      yy += wt * bin->d2 * bin->d2;
+    }
+    const Eigen::Vector3d next = NonNegativeSolve3(a, b, yy);
+    if (!(next.sum() > 0)) break;
+    *theta = next;
+    have = true;
+  }
+  return have;
+}
+
+}  // namespace
+
 NoiseModel FitNoise(std::span<const LdrFrame> frames, const ResponseCurve& response,
                     std::array<int, 3> black_level, std::array<int, 3> saturation_level) {
   NoiseModel m;
   const int n = int(frames.size());
   if (n < 2) return m;
   const int levels = response.levels;
-  const bool sixteen = levels == 65536;
   const int w = frames[0].image.cols, h = frames[0].image.rows;
   // At most ~64k pixels per neighbouring pair and channel, in whole rows spread over the
   // image (contiguous reads): a few ms for any image size.
@@ -592,117 +712,23 @@ NoiseModel FitNoise(std::span<const LdrFrame> frames, const ResponseCurve& respo
   const int row_step = std::max(1, h / rows_wanted);
   m.ok = true;
   for (int c = 0; c < 3; ++c) {
-    const auto& g = response.log_exposure[c];
     const int lo = std::max(black_level[c], 0), hi = saturation_level[c] < 0 ? levels - 1 : saturation_level[c];
-    // The three features of each level (NoiseModel::Variance with unit coefficients).
-    std::vector<std::array<double, 3>> feature(levels);
-    for (int z = 0; z < levels; ++z) {
-      const int z0 = std::max(z - 1, 0), z1 = std::min(z + 1, levels - 1);
-      const double slope = (g[z1] - g[z0]) / std::max(1, z1 - z0);
-      const double e = std::exp(-(g[z] - g[levels / 2]));
-      feature[z] = {slope * slope, e, e * e};
-    }
-    // Squared differences binned by the pair of levels (8-bit: every pair; 16-bit: 256 bins
-    // a side): the count, the mean d^2 and the mean features of each bin.
-    const int shift = sixteen ? 8 : 0;
-    struct Bin {
-      double n = 0, d2 = 0, f[3] = {0, 0, 0};
-    };
-    std::vector<Bin> bins(256 * 256);
     int64_t count = 0;
-    for (int j = 0; j + 1 < n; ++j) {
-      const double lt0 = std::log(frames[j].exposure.count()), lt1 = std::log(frames[j + 1].exposure.count());
-      for (int y = j % row_step; y < h; y += row_step) {
-        for (int x = 0; x < w; ++x) {
-          int z0, z1;
-          if (sixteen) {
-            z0 = frames[j].image.ptr<uint16_t>(y)[3 * x + c];
-            z1 = frames[j + 1].image.ptr<uint16_t>(y)[3 * x + c];
-          } else {
-            z0 = frames[j].image.ptr<uint8_t>(y)[3 * x + c];
-            z1 = frames[j + 1].image.ptr<uint8_t>(y)[3 * x + c];
-          }
-          if (z0 <= lo || z0 >= hi || z1 <= lo || z1 >= hi) continue;
-          const double d = (g[z0] - lt0) - (g[z1] - lt1);
-          // Not noise: motion, a flicker (raising this to 1.5 or 3 changes nothing measurable).
-          if (std::abs(d) > 0.7) continue;
-          Bin& bin = bins[(z0 >> shift) * 256 + (z1 >> shift)];
-          bin.n += 1;
-          bin.d2 += d * d;
-          for (int i = 0; i < 3; ++i) bin.f[i] += feature[z0][i] + feature[z1][i];
-          ++count;
-        }
-      }
-    }
+    std::vector<NoiseBin> bins = NoiseBins(frames, response, c, lo, hi, row_step, &count);
     m.pairs[c] = count;
     if (count < 1000) {
       m.ok = false;
       continue;
     }
-    std::vector<const Bin*> used;
-    for (Bin& bin : bins) {
+    std::vector<const NoiseBin*> used;
+    for (NoiseBin& bin : bins) {
       if (bin.n == 0) continue;
       bin.d2 /= bin.n;
       for (double& f : bin.f) f /= bin.n;
       used.push_back(&bin);
     }
-    // Iteratively reweighted least squares: a bin's mean d^2 has variance 2 v^2 / n under
-    // Gaussian noise, so it weighs n / v^2 with v the current prediction (the first pass
-    // weighs by n alone). Each pass is a non-negative least squares in three unknowns: the
-    // best of the 7 subsets of terms whose unconstrained solution is non-negative (columns
-    // scaled for conditioning).
-    Eigen::Vector3d theta = Eigen::Vector3d::Zero();
-    bool have = false;
-    for (int pass = 0; pass < 5; ++pass) {
-      Eigen::Matrix3d a = Eigen::Matrix3d::Zero();
-      Eigen::Vector3d b = Eigen::Vector3d::Zero();
-      double yy = 0;
-      for (const Bin* bin : used) {
-        const Eigen::Vector3d f(bin->f[0], bin->f[1], bin->f[2]);
-        double wt = bin->n;
-        if (have) {
-          const double v = theta.dot(f);
-          if (!(v > 0)) continue;
-          wt /= v * v;
-        }
-        a += wt * f * f.transpose();
-        b += wt * bin->d2 * f;
-        yy += wt * bin->d2 * bin->d2;
-      }
-      Eigen::Vector3d scale;
-      for (int i = 0; i < 3; ++i) scale(i) = a(i, i) > 0 ? 1.0 / std::sqrt(a(i, i)) : 0.0;
-      const Eigen::Matrix3d as = scale.asDiagonal() * a * scale.asDiagonal();
-      const Eigen::Vector3d bs = scale.cwiseProduct(b);
-      double best = std::numeric_limits<double>::infinity();
-      Eigen::Vector3d next = Eigen::Vector3d::Zero();
-      for (int mask = 1; mask < 8; ++mask) {
-        std::vector<int> idx;
-        for (int i = 0; i < 3; ++i)
-          if ((mask >> i & 1) && scale(i) > 0) idx.push_back(i);
-        if (idx.empty()) continue;
-        const int q = int(idx.size());
-        Eigen::MatrixXd sub(q, q);
-        Eigen::VectorXd rhs(q);
-        for (int u = 0; u < q; ++u) {
-          rhs(u) = bs(idx[u]);
-          for (int v = 0; v < q; ++v) sub(u, v) = as(idx[u], idx[v]);
-        }
-        const Eigen::VectorXd sol = sub.ldlt().solve(rhs);
-        if (!sol.allFinite() || (sol.array() < 0).any()) continue;
-        Eigen::Vector3d t = Eigen::Vector3d::Zero();
-        for (int u = 0; u < q; ++u) t(idx[u]) = sol(u);
-        const double residual = yy - 2 * t.dot(bs) + t.dot(as * t);
-        if (residual < best) {
-          best = residual;
-          next = t;
-        }
-      }
-      next = next.cwiseProduct(scale);
-      if (!(next.sum() > 0)) break;
-      theta = next;
-      have = true;
-    }
-    if (!have) {
+    Eigen::Vector3d theta;
+    if (!FitNoiseTerms(used, &theta)) {
       m.ok = false;
       continue;
     }
@@ -730,10 +756,18 @@ Result<MergeWeighting> ParseMergeWeighting(const std::string& name) {
                    "unknown merge weighting '{}' (hat, photon or noise)", name);
 }
 
-Result<RadianceMap> MergeBracket(std::span<const LdrFrame> frames, const ResponseCurve& response,
-                                 const MergeOptions& o) {
-  RIG_TRY(ValidateBracket(frames));
-  const int levels = LevelsOf(frames[0].image);
+namespace {
+
+// Per frame and channel one table of (w(z), w(z)(g(z) - ln t)) pairs: the merge is then two
+// look-ups and two adds per sample, and one exp per pixel and channel.
+struct MergeEntry {
+  float w, wg;
+};
+
+// The black and saturation levels per channel, checked against the frames' levels.
+Status MergeLevels(std::span<const LdrFrame> frames, const ResponseCurve& response,
+                   const MergeOptions& o, int levels, std::array<int, 3>* lo,
+                   std::array<int, 3>* hi) {
   if (response.levels != levels) {
     return MakeError(ErrorCode::kInvalidInput, frames[0].source,
                      "{}-level frames need a {}-level response (the response has {})", levels,
@@ -744,28 +778,27 @@ Result<RadianceMap> MergeBracket(std::span<const LdrFrame> frames, const Respons
       return MakeError(ErrorCode::kInvalidInput, "", "response {} is malformed", response.id);
     }
   }
-  const int n = static_cast<int>(frames.size());
-  std::array<int, 3> lo, hi;
   for (int c = 0; c < 3; ++c) {
-    lo[c] = o.black_level[c] < 0 ? 0 : o.black_level[c];
-    hi[c] = o.saturation_level[c] < 0 ? levels - 1 : o.saturation_level[c];
-    if (lo[c] >= hi[c] - 1 || hi[c] > levels - 1) {
+    (*lo)[c] = o.black_level[c] < 0 ? 0 : o.black_level[c];
+    (*hi)[c] = o.saturation_level[c] < 0 ? levels - 1 : o.saturation_level[c];
+    if ((*lo)[c] >= (*hi)[c] - 1 || (*hi)[c] > levels - 1) {
       return MakeError(ErrorCode::kInvalidInput, "",
                        "channel {}: black level {} and saturation level {} leave no range",
-                       "BGR"[c], lo[c], hi[c]);
+                       "BGR"[c], (*lo)[c], (*hi)[c]);
     }
   }
-  // Per frame and channel one table of (w(z), w(z)(g(z) - ln t)) pairs: the merge is then two
-  // look-ups and two adds per sample, and one exp per pixel and channel.
-  struct Entry {
-    float w, wg;
-  };
-  std::vector<Entry> lut(size_t(n) * 3 * levels);
-  NoiseModel noise;
-  if (o.weighting == MergeWeighting::kNoise) noise = FitNoise(frames, response, lo, hi);
-  // Inverse variance per level and channel under the fitted model, with the hat's ends: the
-  // weight falls to zero over the last 1/16 of the range at either end (as the hat does), where
-  // a recovered g is least sure (docs/hdr.md: 1/32 lets the simulator's toe count too much).
+  return Ok();
+}
+
+// The tables: [frame][channel][level]. With a fitted noise model the weight is the inverse
+// variance per level and channel, with the hat's ends: it falls to zero over the last 1/16 of
+// the range at either end (as the hat does), where a recovered g is least sure (docs/hdr.md:
+// 1/32 lets the simulator's toe count too much).
+std::vector<MergeEntry> MergeTables(std::span<const LdrFrame> frames, const ResponseCurve& response,
+                                    const MergeOptions& o, const NoiseModel& noise, int levels,
+                                    const std::array<int, 3>& lo, const std::array<int, 3>& hi) {
+  const int n = static_cast<int>(frames.size());
+  std::vector<MergeEntry> lut(size_t(n) * 3 * levels);
   std::vector<std::array<float, 3>> inv_var;
   if (noise.ok) {
     inv_var.resize(levels);
@@ -781,7 +814,7 @@ Result<RadianceMap> MergeBracket(std::span<const LdrFrame> frames, const Respons
   for (int j = 0; j < n; ++j) {
     const double lt = std::log(frames[j].exposure.count());
     for (int c = 0; c < 3; ++c) {
-      Entry* t = &lut[(size_t(j) * 3 + c) * levels];
+      MergeEntry* t = &lut[(size_t(j) * 3 + c) * levels];
       const double g_mid = response.log_exposure[c][levels / 2];
       for (int z = 0; z < levels; ++z) {
         double w = Hat(z, lo[c], hi[c]) / (levels / 2);
@@ -794,157 +827,205 @@ Result<RadianceMap> MergeBracket(std::span<const LdrFrame> frames, const Respons
       }
     }
   }
-  // The same tables split into w and wg arrays per frame (8-bit path): [frame][w|wg][c][z].
-  std::vector<float> split;
-  if (levels == 256) {
-    split.resize(size_t(n) * 2 * 3 * 256);
-    for (int j = 0; j < n; ++j)
-      for (int c = 0; c < 3; ++c)
-        for (int z = 0; z < 256; ++z) {
-          const Entry& e = lut[(size_t(j) * 3 + c) * levels + z];
-          split[(size_t(j) * 2 + 0) * 768 + c * 256 + z] = e.w;
-          split[(size_t(j) * 2 + 1) * 768 + c * 256 + z] = e.wg;
-        }
-  }
-  // RIG_NO_SIMD=1 forces the scalar path (the tests compare the two).
-  const bool have_avx2 = __builtin_cpu_supports("avx2") && !std::getenv("RIG_NO_SIMD");
+  return lut;
+}
+
+// The same tables split into w and wg arrays per frame (the 8-bit path): [frame][w|wg][c][z].
+std::vector<float> SplitTables8(const std::vector<MergeEntry>& lut, int n) {
+  std::vector<float> split(size_t(n) * 2 * 3 * 256);
+  for (int j = 0; j < n; ++j)
+    for (int c = 0; c < 3; ++c)
+      for (int z = 0; z < 256; ++z) {
+        const MergeEntry& e = lut[(size_t(j) * 3 + c) * 256 + z];
+        split[(size_t(j) * 2 + 0) * 768 + c * 256 + z] = e.w;
+        split[(size_t(j) * 2 + 1) * 768 + c * 256 + z] = e.wg;
+      }
+  return split;
+}
+
+// What the merge of every row shares.
+struct MergeRows {
+  std::span<const LdrFrame> frames;
+  const std::vector<MergeEntry>& lut;
+  const std::vector<float>& split;  // 8-bit only
+  int levels;
+  std::array<int, 3> hi;
   std::array<float, 3> sat_value;  // lower bound for a channel saturated everywhere
-  for (int c = 0; c < 3; ++c) {
-    sat_value[c] = float(std::exp(response.log_exposure[c][hi[c]] -
-                                  std::log(frames[0].exposure.count())));
+  bool have_avx2;
+};
+
+// One row's ln radiance (k = 3x + c) into lnv; the samples with no usable value listed.
+void MergeRowLog(const MergeRows& mr, int y, std::vector<float>& lnv, std::vector<float>& num,
+                 std::vector<float>& den, std::vector<int>* unrecorded) {
+  const int n = static_cast<int>(mr.frames.size());
+  const int m = static_cast<int>(lnv.size());
+  if (mr.levels != 65536) {
+    // 8-bit: frame by frame over the row (each frame's row streams once through its tables
+    // while the row's sums stay in cache), with AVX2 gathers where the CPU has them.
+    std::fill(num.begin(), num.end(), 0.f);
+    std::fill(den.begin(), den.end(), 0.f);
+    for (int j = 0; j < n; ++j) {
+      const float* w = &mr.split[size_t(j) * 2 * 3 * 256];
+      (mr.have_avx2 ? AccumulateRow8Avx2 : AccumulateRow8)(mr.frames[j].image.ptr<uint8_t>(y), m,
+                                                           w, w + 3 * 256, den.data(), num.data());
+    }
+    for (int k = 0; k < m; ++k) {
+      if (den[k] > 0) {
+        lnv[k] = num[k] / den[k];
+      } else {
+        lnv[k] = 0;
+        unrecorded->push_back(k);
+      }
+    }
+    return;
   }
-
-  const int width = frames[0].image.cols, height = frames[0].image.rows;
-  RadianceMap map;
-  map.radiance.create(height, width, CV_32FC3);
-  map.flags.create(height, width, CV_8UC1);
-  std::vector<int> sat_rows(height, 0), black_rows(height, 0);
-  const bool sixteen = levels == 65536;
-
-  ParallelFor(height, o.threads, [&](int y0, int y1) {
-    const int m = width * 3;
-    std::vector<float> lnv(m), num(sixteen ? 0 : m), den(sixteen ? 0 : m);
-    std::vector<const uint8_t*> p8(n);
-    std::vector<const uint16_t*> p16(n);
-    for (int y = y0; y < y1; ++y) {
-      for (int j = 0; j < n; ++j) {
-        if (sixteen) {
-          p16[j] = frames[j].image.ptr<uint16_t>(y);
-        } else {
-          p8[j] = frames[j].image.ptr<uint8_t>(y);
-        }
-      }
-      uint8_t* fl = map.flags.ptr<uint8_t>(y);
-      std::memset(fl, 0, width);
-      std::vector<int> unrecorded;  // indices k = 3x + c with no usable sample
-      if (!sixteen) {
-        // 8-bit: frame by frame over the row (each frame's row streams once through its
-        // tables while the row's sums stay in cache), with AVX2 gathers where the CPU has them.
-        std::fill(num.begin(), num.end(), 0.f);
-        std::fill(den.begin(), den.end(), 0.f);
-        for (int j = 0; j < n; ++j) {
-          const float* w = &split[size_t(j) * 2 * 3 * 256];
-          (have_avx2 ? AccumulateRow8Avx2 : AccumulateRow8)(p8[j], m, w, w + 3 * 256, den.data(), num.data());
-        }
-        for (int k = 0; k < m; ++k) {
-          if (den[k] > 0) {
-            lnv[k] = num[k] / den[k];
-          } else {
-            lnv[k] = 0;
-            unrecorded.push_back(k);
-          }
-        }
-      }
-      for (int k = 0; sixteen && k < m; k += 3) {
-        float num16[3] = {0, 0, 0}, den16[3] = {0, 0, 0};
-        for (int j = 0; j < n; ++j) {
-          const Entry* t = &lut[size_t(j) * 3 * levels];
-          const int z0 = p16[j][k], z1 = p16[j][k + 1], z2 = p16[j][k + 2];
-          const Entry e0 = t[z0], e1 = t[levels + z1], e2 = t[2 * levels + z2];
-          den16[0] += e0.w, num16[0] += e0.wg;
-          den16[1] += e1.w, num16[1] += e1.wg;
-          den16[2] += e2.w, num16[2] += e2.wg;
-        }
-        for (int c = 0; c < 3; ++c) {
-          if (den16[c] > 0) {
-            lnv[k + c] = num16[c] / den16[c];
-          } else {
-            lnv[k + c] = 0;
-            unrecorded.push_back(k + c);
-          }
-        }
-      }
-      float* out = map.radiance.ptr<float>(y);
-      cv::Mat lnm(1, m, CV_32F, lnv.data()), outm(1, m, CV_32F, out);
-      cv::exp(lnm, outm);
-      for (int k : unrecorded) {
-        const int c = k % 3, x = k / 3;
-        // Saturated if even the shortest exposure is at or above the saturation level;
-        // otherwise black (or a gap in the bracket: black in one, clipped in the next).
-        const int z_short = sixteen ? p16[0][k] : p8[0][k];
-        if (z_short >= hi[c]) {
-          out[k] = sat_value[c];
-          fl[x] = kFlagSaturated;
-        } else {
-          out[k] = 0;
-          if (fl[x] == kFlagOk) fl[x] = kFlagBlack;
-        }
-      }
-      for (int x = 0; x < width; ++x) {
-        sat_rows[y] += fl[x] == kFlagSaturated;
-        black_rows[y] += fl[x] == kFlagBlack;
-      }
+  const int levels = mr.levels;
+  for (int k = 0; k < m; k += 3) {
+    float num16[3] = {0, 0, 0}, den16[3] = {0, 0, 0};
+    for (int j = 0; j < n; ++j) {
+      const MergeEntry* t = &mr.lut[size_t(j) * 3 * levels];
+      const uint16_t* p = mr.frames[j].image.ptr<uint16_t>(y);
+      const int z0 = p[k], z1 = p[k + 1], z2 = p[k + 2];
+      const MergeEntry e0 = t[z0], e1 = t[levels + z1], e2 = t[2 * levels + z2];
+      den16[0] += e0.w, num16[0] += e0.wg;
+      den16[1] += e1.w, num16[1] += e1.wg;
+      den16[2] += e2.w, num16[2] += e2.wg;
     }
-  }, 4);
-  map.saturated_pixels = std::accumulate(sat_rows.begin(), sat_rows.end(), 0);
-  map.black_pixels = std::accumulate(black_rows.begin(), black_rows.end(), 0);
-
-  const double total = double(width) * height;
-  if (o.max_unrecorded_fraction < 1.0) {
-    if (map.saturated_pixels > o.max_unrecorded_fraction * total) {
-      return MakeError(ErrorCode::kInvalidInput, frames.front().source,
-                       "bracket too short: {:.1f}% of the pixels are saturated even in the "
-                       "shortest exposure ({:.6g} s); add shorter exposures",
-                       100.0 * map.saturated_pixels / total, frames.front().exposure.count());
-    }
-    if (map.black_pixels > o.max_unrecorded_fraction * total) {
-      return MakeError(ErrorCode::kInvalidInput, frames.back().source,
-                       "bracket too short: {:.1f}% of the pixels are black even in the longest "
-                       "exposure ({:.6g} s); add longer exposures",
-                       100.0 * map.black_pixels / total, frames.back().exposure.count());
+    for (int c = 0; c < 3; ++c) {
+      if (den16[c] > 0) {
+        lnv[k + c] = num16[c] / den16[c];
+      } else {
+        lnv[k + c] = 0;
+        unrecorded->push_back(k + c);
+      }
     }
   }
+}
 
+// Rows [y0, y1) of the map: radiance, flags, and the rows' saturated and black counts.
+void MergeRowRange(const MergeRows& mr, int y0, int y1, RadianceMap* map, std::vector<int>* sat_rows,
+                   std::vector<int>* black_rows) {
+  const int width = mr.frames[0].image.cols;
+  const bool sixteen = mr.levels == 65536;
+  const int m = width * 3;
+  std::vector<float> lnv(m), num(sixteen ? 0 : m), den(sixteen ? 0 : m);
+  for (int y = y0; y < y1; ++y) {
+    uint8_t* fl = map->flags.ptr<uint8_t>(y);
+    std::memset(fl, 0, width);
+    std::vector<int> unrecorded;  // indices k = 3x + c with no usable sample
+    MergeRowLog(mr, y, lnv, num, den, &unrecorded);
+    float* out = map->radiance.ptr<float>(y);
+    cv::Mat lnm(1, m, CV_32F, lnv.data()), outm(1, m, CV_32F, out);
+    cv::exp(lnm, outm);
+    for (int k : unrecorded) {
+      const int c = k % 3, x = k / 3;
+      // Saturated if even the shortest exposure is at or above the saturation level;
+      // otherwise black (or a gap in the bracket: black in one, clipped in the next).
+      const int z_short = sixteen ? mr.frames[0].image.ptr<uint16_t>(y)[k]
+                                  : mr.frames[0].image.ptr<uint8_t>(y)[k];
+      if (z_short >= mr.hi[c]) {
+        out[k] = mr.sat_value[c];
+        fl[x] = kFlagSaturated;
+      } else {
+        out[k] = 0;
+        if (fl[x] == kFlagOk) fl[x] = kFlagBlack;
+      }
+    }
+    for (int x = 0; x < width; ++x) {
+      (*sat_rows)[y] += fl[x] == kFlagSaturated;
+      (*black_rows)[y] += fl[x] == kFlagBlack;
+    }
+  }
+}
+
+// A bracket too short at either end, beyond the fraction allowed.
+Status CheckRecorded(std::span<const LdrFrame> frames, const RadianceMap& map,
+                     const MergeOptions& o) {
+  const double total = double(map.radiance.cols) * map.radiance.rows;
+  if (o.max_unrecorded_fraction >= 1.0) return Ok();
+  if (map.saturated_pixels > o.max_unrecorded_fraction * total) {
+    return MakeError(ErrorCode::kInvalidInput, frames.front().source,
+                     "bracket too short: {:.1f}% of the pixels are saturated even in the "
+                     "shortest exposure ({:.6g} s); add shorter exposures",
+                     100.0 * map.saturated_pixels / total, frames.front().exposure.count());
+  }
+  if (map.black_pixels > o.max_unrecorded_fraction * total) {
+    return MakeError(ErrorCode::kInvalidInput, frames.back().source,
+                     "bracket too short: {:.1f}% of the pixels are black even in the longest "
+                     "exposure ({:.6g} s); add longer exposures",
+                     100.0 * map.black_pixels / total, frames.back().exposure.count());
+  }
+  return Ok();
+}
+
+// The map's header: its frames, response, units, flags and weighting.
+void MergeAttributes(std::span<const LdrFrame> frames, const ResponseCurve& response,
+                     const MergeOptions& o, const NoiseModel& noise, RadianceMap* map) {
   std::string sources;
   for (const auto& f : frames) {
     if (!sources.empty()) sources += ' ';
     sources += fs::path(f.source).filename().string();
   }
-  map.attributes["exposures_s"] = FormatExposures(frames);
-  map.attributes["frames"] = sources;
-  map.attributes["response_id"] = response.id.empty() ? ResponseId(response) : response.id;
-  map.attributes["response_linear"] = response.linear ? "1" : "0";
-  map.attributes["radiance_units"] =
-      "relative: exp(g(z) - ln t) with g(mid level) = 0, per channel";
-  map.attributes["flags"] =
+  auto& a = map->attributes;
+  a["exposures_s"] = FormatExposures(frames);
+  a["frames"] = sources;
+  a["response_id"] = response.id.empty() ? ResponseId(response) : response.id;
+  a["response_linear"] = response.linear ? "1" : "0";
+  a["radiance_units"] = "relative: exp(g(z) - ln t) with g(mid level) = 0, per channel";
+  a["flags"] =
       "0 ok; 1 a channel saturated in every exposure (holds the lower bound from the shortest "
       "exposure); 2 a channel black in every exposure (holds 0)";
-  map.attributes["saturated_pixels"] = std::to_string(map.saturated_pixels);
-  map.attributes["black_pixels"] = std::to_string(map.black_pixels);
+  a["saturated_pixels"] = std::to_string(map->saturated_pixels);
+  a["black_pixels"] = std::to_string(map->black_pixels);
   // The weighting asked for (what `rig process` compares to decide a map is up to date), and
   // below it, the one used with its fitted terms.
-  map.attributes["merge_weighting_option"] = MergeWeightingName(o.weighting);
+  a["merge_weighting_option"] = MergeWeightingName(o.weighting);
   if (noise.ok) {
-    map.attributes["merge_weighting"] = fmt::format(
+    a["merge_weighting"] = fmt::format(
         "inverse variance, fitted per channel B,G,R: quantisation {:.3g},{:.3g},{:.3g} x g'^2; "
         "shot {:.3g},{:.3g},{:.3g} x exp(-G); read {:.3g},{:.3g},{:.3g} x exp(-2G); "
         "G = g(z) - g(mid)",
         noise.quant[0], noise.quant[1], noise.quant[2], noise.shot[0], noise.shot[1],
         noise.shot[2], noise.read[0], noise.read[1], noise.read[2]);
   } else {
-    map.attributes["merge_weighting"] =
-        o.weighting == MergeWeighting::kHat ? "hat" : "hat x exposure (photon noise)";
+    a["merge_weighting"] = o.weighting == MergeWeighting::kHat ? "hat" : "hat x exposure (photon noise)";
   }
+}
+
+}  // namespace
+
+Result<RadianceMap> MergeBracket(std::span<const LdrFrame> frames, const ResponseCurve& response,
+                                 const MergeOptions& o) {
+  RIG_TRY(ValidateBracket(frames));
+  const int levels = LevelsOf(frames[0].image);
+  std::array<int, 3> lo, hi;
+  RIG_TRY(MergeLevels(frames, response, o, levels, &lo, &hi));
+  const int n = static_cast<int>(frames.size());
+  NoiseModel noise;
+  if (o.weighting == MergeWeighting::kNoise) noise = FitNoise(frames, response, lo, hi);
+  const std::vector<MergeEntry> lut = MergeTables(frames, response, o, noise, levels, lo, hi);
+  const std::vector<float> split = levels == 256 ? SplitTables8(lut, n) : std::vector<float>{};
+  std::array<float, 3> sat_value;
+  for (int c = 0; c < 3; ++c) {
+    sat_value[c] = float(std::exp(response.log_exposure[c][hi[c]] -
+                                  std::log(frames[0].exposure.count())));
+  }
+  // RIG_NO_SIMD=1 forces the scalar path (the tests compare the two).
+  const bool have_avx2 = __builtin_cpu_supports("avx2") && !std::getenv("RIG_NO_SIMD");
+  const MergeRows rows{frames, lut, split, levels, hi, sat_value, have_avx2};
+
+  const int width = frames[0].image.cols, height = frames[0].image.rows;
+  RadianceMap map;
+  map.radiance.create(height, width, CV_32FC3);
+  map.flags.create(height, width, CV_8UC1);
+  std::vector<int> sat_rows(height, 0), black_rows(height, 0);
+  ParallelFor(height, o.threads, [&](int y0, int y1) {
+    MergeRowRange(rows, y0, y1, &map, &sat_rows, &black_rows);
+  }, 4);
+  map.saturated_pixels = std::accumulate(sat_rows.begin(), sat_rows.end(), 0);
+  map.black_pixels = std::accumulate(black_rows.begin(), black_rows.end(), 0);
+  RIG_TRY(CheckRecorded(frames, map, o));
+  MergeAttributes(frames, response, o, noise, &map);
   return map;
 }
 

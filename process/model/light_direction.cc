@@ -86,4 +86,22 @@ bool NearLamp::SameSamplingAs(const NearLamp& o) const {
          depth_mm.empty() && o.depth_mm.empty();
 }
 
+double AngleBetweenDeg(const Vec3& a, const Vec3& b) {
+  const double na = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+  const double nb = std::sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+  const double c = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) / (na * nb);
+  return std::acos(std::clamp(c, -1.0, 1.0)) * 180.0 / std::numbers::pi;
+}
+
+double SampleSpacingDeg(const std::vector<Vec3>& dirs) {
+  double spacing = 0;
+  for (size_t i = 0; i < dirs.size(); ++i) {
+    double nearest = 180;
+    for (size_t j = 0; j < dirs.size(); ++j)
+      if (j != i) nearest = std::min(nearest, AngleBetweenDeg(dirs[i], dirs[j]));
+    if (dirs.size() > 1) spacing = std::max(spacing, nearest);
+  }
+  return spacing;
+}
+
 }  // namespace rig

@@ -8,6 +8,8 @@
 // lamp and its own fall-off; photometric stereo and the harmonic fit both use it.
 #pragma once
 
+#include <vector>
+
 #include <array>
 
 #include <opencv2/core.hpp>
@@ -66,5 +68,10 @@ struct NearLamp {
   // (two far lamps always; a lamp with a depth map is never taken as equal to another).
   bool SameSamplingAs(const NearLamp& o) const;
 };
+
+// The angle between two directions (need not be unit), degrees.
+double AngleBetweenDeg(const Vec3& a, const Vec3& b);
+// Largest nearest-neighbour angle among directions (degrees): the sampling's own spacing.
+double SampleSpacingDeg(const std::vector<Vec3>& directions);
 
 }  // namespace rig

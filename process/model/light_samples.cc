@@ -5,7 +5,7 @@
 #include <array>
 #include <cmath>
 
-#include "process/model/fit.h"
+#include "process/model/samples.h"
 
 namespace rig {
 

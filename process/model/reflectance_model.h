@@ -1,6 +1,7 @@
 // One interface for every reflectance model family: per-pixel coefficients of a fixed
 // analytic basis (SH, HSH, PTM: `Model`), PCA with interpolated light dependence
-// (`PcaModel`), a neural decoder. Render, evaluate, export and the viewer go through it alone.
+// (`PcaModel`). Render, evaluate, export and the viewer go through it alone; each family
+// wraps its own model (WrapHarmonic, WrapPca), any/load_model.h reads any of them.
 #pragma once
 
 #include <array>
@@ -14,9 +15,19 @@
 #include "config/config.h"
 #include "config/result.h"
 #include "process/model/light_direction.h"
-#include "process/model/model.h"
 
 namespace rig {
+
+// What a model's values came from: ρ from radiance maps (linear), or the display-referred code
+// values of 8-bit photographs (sRGB), which renders by default reproduce as the photos did.
+enum class ValueEncoding { kLinear, kSrgb };
+
+// Where a lamp direction lies relative to the sampled lamps.
+struct RegionCheck {
+  double nearest_deg = 0;  // angle to the nearest sampled lamp
+  bool inside = true;      // nearest_deg <= the sampling's own spacing (+0.5° slack)
+  double spacing_deg = 0;  // that spacing: the largest nearest-neighbour angle between lamps
+};
 
 class ReflectanceModel {
  public:
@@ -47,19 +58,6 @@ class ReflectanceModel {
   // Writes the model (a file or a folder, by family) at `path`.
   virtual Status Save(const std::string& path) const = 0;
 };
-
-// The harmonic families (SH, HSH, PTM coefficients in an EXR).
-std::unique_ptr<ReflectanceModel> WrapHarmonic(Model model);
-// The PCA family (a relight web-format folder); lamp directions as the capture gave them.
-class PcaModel;
-std::unique_ptr<ReflectanceModel> WrapPca(PcaModel model);
-
-// Reads any family: an EXR file (harmonic), a folder with info.json (relight's web format,
-// the types this build reads), a folder with a neural model.
-Result<std::unique_ptr<ReflectanceModel>> LoadReflectanceModel(const std::string& path);
-
-// Bytes on disk of a model: the file, or every file of the folder.
-uint64_t ModelBytesOnDisk(const std::string& path);
 
 // The nearest fitted lamp and whether a direction is within the sampling's own spacing.
 RegionCheck CheckAgainstLamps(const std::vector<Vec3>& lamps, double spacing_deg,

@@ -13,7 +13,7 @@
 #include <opencv2/core.hpp>
 
 #include "config/result.h"
-#include "process/model/model.h"
+#include "process/model/harmonic/model.h"
 #include "process/model/reflectance_model.h"
 
 namespace rig {

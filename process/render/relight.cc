@@ -1,7 +1,7 @@
 // Relighting: lamps summed in linear radiance, sweeps, the region check, pictures and video.
 #include "process/render/relight.h"
 
-#include "process/model/fit.h"
+#include "process/model/harmonic/fit.h"
 
 #include <cctype>
 #include <cmath>

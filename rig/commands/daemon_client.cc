@@ -11,7 +11,7 @@
 #include "capture/service/http_server.h"
 #include "rig/backends.h"
 #include "rig/commands/command.h"
-#include "rig/commands/session_run.h"
+#include "capture/daemon/session_model.h"
 
 namespace rig {
 

@@ -9,7 +9,7 @@
 
 #include "config/console.h"
 #include "process/evaluate/rti_loo.h"
-#include "process/model/rti_fit.h"
+#include "process/model/any/rti_fit.h"
 #include "rig/commands/command.h"
 #include "sim/evaluation.h"
 

@@ -1,11 +1,10 @@
 // rig hdr --list LIST --out FILE.exr: merges one exposure bracket into a radiance map (EXR).
-#include <chrono>
 #include <cstdio>
+#include <map>
+#include <string>
+#include <vector>
 
-#include "config/log.h"
-#include "process/hdr/hdr.h"
-#include "process/io/image_io.h"
-#include "process/io/raw_io.h"
+#include "process/hdr/bracket_file.h"
 #include "rig/commands/command.h"
 
 namespace rig {
@@ -72,71 +71,26 @@ int RunHdr(int argc, char** argv) {
   }
   ro.threads = mo.threads = threads;
   mo.weighting = *ParseMergeWeighting(weighting);
-  using Clock = std::chrono::steady_clock;
-  auto since = [](Clock::time_point t) {
-    return std::chrono::duration<double>(Clock::now() - t).count();
-  };
-
-  auto t0 = Clock::now();
-  auto frames = LoadBracketList(list, threads);
-  if (!frames.ok()) return ReportError("hdr", frames.error());
-  if (auto s = ValidateBracket(*frames); !s.ok()) return ReportError("hdr", s.error().Within(list));
-  const double decode_s = since(t0);
-  const int levels = frames->front().image.depth() == CV_16U ? 65536 : 256;
-  // RAW frames are linear once decoded: no response to recover. A bracket mixing RAW with
-  // camera-rendered frames has no one response.
-  const size_t raw_frames = std::count_if(frames->begin(), frames->end(),
-                                          [](const LdrFrame& f) { return IsRawPath(f.source); });
-  if (raw_frames > 0 && raw_frames < frames->size()) {
-    std::fprintf(stderr, "rig hdr: %s: %zu of %zu frames are RAW: a bracket is all RAW or none\n",
-                 list.c_str(), raw_frames, frames->size());
-    return 2;
-  }
-  if (raw_frames > 0 && !response_in.empty()) {
-    std::fprintf(stderr, "rig hdr: %s: RAW frames are linear; --response does not apply\n", list.c_str());
-    return 2;
-  }
-  if (raw_frames > 0) linear = true;
-
-  t0 = Clock::now();
-  ResponseCurve response;
-  if (linear) {
-    response = LinearResponse(levels);
-  } else if (!response_in.empty()) {
-    auto r = LoadResponse(response_in);
-    if (!r.ok()) return ReportError("hdr", r.error());
-    response = std::move(r).value();
-  } else {
-    const Bracket brackets[1] = {*frames};
-    auto r = RecoverResponse(brackets, ro);
-    if (!r.ok()) return ReportError("hdr", r.error().Within(list));
-    response = std::move(r).value();
-  }
-  const double response_s = since(t0);
-  if (!response_out.empty()) {
-    if (auto s = SaveResponse(response, response_out); !s.ok()) return ReportError("hdr", s.error());
-  }
-
-  t0 = Clock::now();
-  auto map = MergeBracket(*frames, response, mo);
-  if (!map.ok()) return ReportError("hdr", map.error());
-  const double merge_s = since(t0);
-  for (const auto& [k, v] : extra) map->attributes[k] = v;
-
-  t0 = Clock::now();
-  auto type = ParseExrPixelType(pixel_type);
-  if (auto s = WriteRadianceMap(out, *map, *type, threads, *ParseExrCompression(compression));
-      !s.ok()) {
-    return ReportError("hdr", s.error());
-  }
-  const double write_s = since(t0);
-  const double pixels = double(map->radiance.total());
+  BracketFileRequest rq;
+  rq.list = list;
+  rq.out = out;
+  rq.response_in = response_in;
+  rq.response_out = response_out;
+  rq.linear = linear;
+  rq.response = ro;
+  rq.merge = mo;
+  rq.pixel_type = *ParseExrPixelType(pixel_type);
+  rq.compression = *ParseExrCompression(compression);
+  rq.attributes = extra;
+  rq.threads = threads;
+  auto r = MergeBracketFile(rq);
+  if (!r.ok()) return ReportError("hdr", r.error());
+  const double pixels = double(r->width) * r->height;
   std::printf("%s: %dx%d from %zu frames, response %s; saturated %d (%.2f%%), black %d (%.2f%%); "
               "decode %.3f s, response %.3f s, merge %.3f s, write %.3f s\n",
-              out.c_str(), map->radiance.cols, map->radiance.rows, frames->size(),
-              response.id.c_str(), map->saturated_pixels, 100.0 * map->saturated_pixels / pixels,
-              map->black_pixels, 100.0 * map->black_pixels / pixels, decode_s, response_s,
-              merge_s, write_s);
+              out.c_str(), r->width, r->height, r->frames, r->response_id.c_str(),
+              r->saturated_pixels, 100.0 * r->saturated_pixels / pixels, r->black_pixels,
+              100.0 * r->black_pixels / pixels, r->decode_s, r->response_s, r->merge_s, r->write_s);
   return 0;
 }
 

@@ -7,9 +7,9 @@
 
 #include "process/geometry/photometric_stereo.h"
 #include "process/io/exr_io.h"
-#include "process/model/rti.h"
+#include "process/model/harmonic/loo.h"
 #include "rig/commands/command.h"
-#include "rig/commands/light_source.h"
+#include "capture/session/light_source.h"
 
 namespace rig {
 

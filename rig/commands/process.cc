@@ -5,7 +5,7 @@
 #include "config/console.h"
 #include "config/log.h"
 #include "rig/commands/command.h"
-#include "rig/commands/session_run.h"
+#include "capture/daemon/session_model.h"
 #include "capture/daemon/processor.h"
 
 namespace rig {

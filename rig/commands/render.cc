@@ -14,7 +14,7 @@
 #include "capture/session/render_source.h"
 #include "process/export/load_any.h"
 #include "process/hdr/hdr.h"
-#include "process/model/model.h"
+#include "process/model/harmonic/model.h"
 #include "process/render/envmap.h"
 #include "process/render/radiance_file.h"
 #include "process/render/relight.h"

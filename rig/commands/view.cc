@@ -15,7 +15,7 @@
 #include "process/export/load_any.h"
 #include "process/export/relight_files.h"
 #include "process/export/viewer_page.h"
-#include "process/model/model.h"
+#include "process/model/harmonic/model.h"
 #include "process/render/tonemap.h"
 #include "rig/commands/command.h"
 

@@ -26,14 +26,7 @@ using testing::CommandResult;
 using testing::RunRig;
 
 // A small, fast dry run: 160x120, 40 poses x 4 exposures.
-const char* kSmall = R"([sim]
-width = 160
-height = 120
-[bracket]
-center_s = 0.02
-ev_step = 1.5
-count = 4
-)";
+const char* const kSmall = testing::kSmallDryRun;
 
 std::vector<nlohmann::json> Records(const fs::path& session) {
   auto c = Journal::Read(session / "journal.jsonl");

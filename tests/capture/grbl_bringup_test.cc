@@ -21,6 +21,7 @@
 #include "config/config.h"
 #include "rig/backends.h"
 #include "sim/grbl_emulator.h"
+#include "tests/support/motor_emulators.h"
 #include "tests/support/pty_shim.h"
 #include "tests/support/run_rig.h"
 
@@ -28,38 +29,13 @@ namespace rig {
 namespace {
 
 using ::testing::HasSubstr;
+using rig::testing::FastGrbl;
+using rig::testing::GrblConfigFor;
+using rig::testing::StartGrbl;
 using ::testing::Not;
 using Clock = std::chrono::steady_clock;
 
 const bool kPtyShim = rig::testing::PtyShimLinked();
-
-GrblEmulatorOptions FastGrbl() {
-  GrblEmulatorOptions o;
-  o.time_scale = 200;
-  o.banner_delay_s = 0.05;
-  o.replug_after_s = 0.2;
-  return o;
-}
-
-MotorConfig GrblConfigFor(const std::string& port) {
-  MotorConfig c;
-  c.backend = "grbl";
-  c.port = port;
-  c.speed_deg_per_s = 30;
-  c.accel_deg_per_s2 = 60;
-  c.reply_timeout_s = 0.5;
-  c.move_timeout_s = 1.5;
-  c.retries = 2;
-  c.retry_backoff_s = 0.05;
-  c.grbl.banner_timeout_s = 0.5;
-  return c;
-}
-
-std::unique_ptr<GrblEmulator> StartGrbl(GrblEmulatorOptions o) {
-  auto emu = StartGrblEmulator(o);
-  EXPECT_TRUE(emu.ok()) << emu.error().ToString();
-  return emu.ok() ? std::move(emu).value() : nullptr;
-}
 
 Config SmallSimConfigWithGrbl(const std::string& port) {
   ConfigResult cr = LoadConfig(testing::SourceDir() + "/config/sim.toml");

@@ -19,46 +19,25 @@
 #include "capture/devices/signals.h"
 #include "sim/grbl_emulator.h"
 #include "sim/maestro_emulator.h"
+#include "tests/support/motor_emulators.h"
 #include "tests/support/pty_shim.h"
 
 namespace rig {
 namespace {
 
 using ::testing::HasSubstr;
+using rig::testing::FastGrbl;
+using rig::testing::GrblConfigFor;
+using rig::testing::StartGrbl;
+using rig::testing::FastMaestro;
+using rig::testing::MaestroConfigFor;
+using rig::testing::StartMaestro;
 using Clock = std::chrono::steady_clock;
 
 // libserialport only accepts ports it finds in sysfs; a pseudo-terminal has none. The test
 // support interposer answers those few libc calls for ptys, so the real library (and every
 // byte of its I/O) runs against the emulators.
 const bool kPtyShim = rig::testing::PtyShimLinked();
-
-GrblEmulatorOptions FastGrbl() {
-  GrblEmulatorOptions o;
-  o.time_scale = 200;       // motion 200x faster than real time
-  o.banner_delay_s = 0.05;  // the Arduino's reset after open, shortened
-  o.replug_after_s = 0.2;
-  return o;
-}
-
-MotorConfig GrblConfigFor(const std::string& port) {
-  MotorConfig c;
-  c.backend = "grbl";
-  c.port = port;
-  c.speed_deg_per_s = 30;
-  c.accel_deg_per_s2 = 60;
-  c.reply_timeout_s = 0.5;
-  c.move_timeout_s = 1.5;
-  c.retries = 2;
-  c.retry_backoff_s = 0.05;
-  c.grbl.banner_timeout_s = 0.5;
-  return c;
-}
-
-std::unique_ptr<GrblEmulator> StartGrbl(GrblEmulatorOptions o, const std::string& link = "") {
-  auto emu = StartGrblEmulator(o, link);
-  EXPECT_TRUE(emu.ok()) << emu.error().ToString();
-  return emu.ok() ? std::move(emu).value() : nullptr;
-}
 
 std::string LinkPath(const std::string& name) {
   return (std::filesystem::temp_directory_path() / (name + "_" + std::to_string(::getpid()))).string();
@@ -323,37 +302,6 @@ TEST(GrblMotor, ADryRunWithTheGrblEmulatorAsTheMotorCompletes) {
 }
 
 // ---- Maestro ------------------------------------------------------------------------------
-
-MaestroEmulatorOptions FastMaestro() {
-  MaestroEmulatorOptions o;
-  o.time_scale = 50;
-  o.replug_after_s = 0.2;
-  return o;
-}
-
-MotorConfig MaestroConfigFor(const std::string& port) {
-  MotorConfig c;
-  c.backend = "maestro";
-  c.port = port;
-  c.speed_deg_per_s = 60;
-  c.accel_deg_per_s2 = 200;
-  c.reply_timeout_s = 0.5;
-  c.move_timeout_s = 1.5;
-  c.retries = 1;
-  c.retry_backoff_s = 0.05;
-  c.maestro.h_us_at_zero = 1000;
-  c.maestro.h_us_per_deg = 10;
-  c.maestro.v_us_at_zero = 1100;
-  c.maestro.v_us_per_deg = 8;
-  c.maestro.poll_interval_s = 0.005;
-  return c;
-}
-
-std::unique_ptr<MaestroEmulator> StartMaestro(MaestroEmulatorOptions o, const std::string& link = "") {
-  auto emu = StartMaestroEmulator(o, link);
-  EXPECT_TRUE(emu.ok()) << emu.error().ToString();
-  return emu.ok() ? std::move(emu).value() : nullptr;
-}
 
 TEST(MaestroMotor, AnglesBecomeCalibratedPulseWidthsAndTheServosGetThere) {
   auto emu = StartMaestro(FastMaestro());

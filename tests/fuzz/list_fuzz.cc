@@ -10,7 +10,7 @@
 #include "process/io/exr_io.h"
 #include "process/io/image_io.h"
 #include "process/io/jpeg_io.h"
-#include "process/model/map_fit.h"
+#include "process/model/session/map_fit.h"
 #include "tests/fuzz/fuzz_support.h"
 
 namespace {

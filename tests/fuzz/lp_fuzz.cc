@@ -7,7 +7,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "process/io/jpeg_io.h"
-#include "process/model/rti_fit.h"
+#include "process/model/any/rti_fit.h"
 #include "tests/fuzz/fuzz_support.h"
 
 namespace {

@@ -14,7 +14,7 @@
 #include "process/io/exr_io.h"
 #include "process/io/jpeg_io.h"
 #include "process/model/light_direction.h"
-#include "process/model/rti_fit.h"
+#include "process/model/any/rti_fit.h"
 #include "sim/dng_writer.h"
 #include "tests/fuzz/fuzz_support.h"
 

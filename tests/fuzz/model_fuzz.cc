@@ -6,6 +6,7 @@
 
 #include "process/model/light_direction.h"
 #include "process/model/reflectance_model.h"
+#include "process/model/any/load_model.h"
 #include "tests/fuzz/exr_budget.h"
 #include "tests/fuzz/fuzz_support.h"
 

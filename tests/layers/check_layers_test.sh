@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The layer check holds for the tree, and it fails, naming file and line, on a tree with one
-# include that runs upwards (process/ including capture/, sim/ including rig/), or that names
-# a header outside every layer.
+# include that runs upwards (process/ including capture/, sim/ including rig/), a model family
+# that includes another family, or one that names a header outside every layer.
 set -uo pipefail
 src=$1
 check="$src/scripts/check-layers.sh"
@@ -25,10 +25,16 @@ mk up2 sim/sim_lamp.h '#include "rig/backends.h"'
 expect "sim including rig" 1 'sim/sim_lamp.h:1: sim includes "rig/backends.h"' "$tmp/up2"
 mk up3 capture/plan/pose.h '#include "capture/session/session_store.h"'
 expect "plan including session" 1 'capture/plan/pose.h:1:' "$tmp/up3"
-mk up4 process/io/exr_io.cc '#include "process/model/model.h"'
+mk up4 process/io/exr_io.cc '#include "process/model/harmonic/model.h"'
 expect "io including model" 1 'process/io/exr_io.cc:1:' "$tmp/up4"
 mk up5 capture/daemon/daemon.cc '#include "process/hdr.h"'
 expect "a header outside every layer" 1 'belongs to no layer' "$tmp/up5"
+mk peer process/model/pca/pca.cc '#include "process/model/light_samples.h"' '#include "process/model/harmonic/basis.h"'
+expect "a family including another family" 1 'process/model/pca/pca.cc:2: process/model/pca includes "process/model/harmonic/basis.h" from process/model/harmonic, a peer' "$tmp/peer"
+mk shared process/model/light_samples.cc '#include "process/model/neural/neural.h"'
+expect "what the families share including a family" 1 'process/model/light_samples.cc:1: process/model includes' "$tmp/shared"
+mk across process/model/any/load_model.cc '#include "process/model/pca/pca.h"' '#include "process/model/harmonic/model.h"' '#include "process/model/samples.h"'
+expect "across families including families" 0 "every include points down" "$tmp/across"
 mk down rig/main.cc '#include "sim/world.h"' '#include "capture/daemon/daemon.h"' '#include "config/log.h"'
 expect "downward includes" 0 "every include points down" "$tmp/down"
 

@@ -13,6 +13,7 @@
 
 #include "process/model/light_direction.h"
 #include "tests/support/run_rig.h"
+#include "tests/support/synthetic_model.h"
 
 namespace rig {
 namespace {
@@ -22,20 +23,7 @@ namespace fs = std::filesystem;
 // SH order 2 on a 24x16 image, seeded coefficients around a constant term, lamps on h 0-90,
 // v 0-30 (10° steps), capture lamp (2, 1.5, 1); one pixel flagged.
 Model SyntheticModel() {
-  ModelInfo info;
-  info.lamp_radiance_rgb = {2.0, 1.5, 1.0};
-  for (double v = 0; v <= 30; v += 10)
-    for (double h = 0; h <= 90; h += 10) info.lamp_directions.push_back(LightDirection(h, v));
-  info.sample_spacing_deg = SampleSpacingDeg(info.lamp_directions);
-  Model model(Basis(BasisKind::kSh, 2), info, 24, 16);
-  std::mt19937 rng(11);
-  std::uniform_real_distribution<float> u(-0.1f, 0.1f);
-  for (int k = 0; k < model.basis().size(); ++k) {
-    cv::Mat c(16, 24, CV_32FC3);
-    for (auto it = c.begin<cv::Vec3f>(); it != c.end<cv::Vec3f>(); ++it)
-      *it = cv::Vec3f(u(rng), u(rng), u(rng)) + (k == 0 ? cv::Vec3f(1, 1, 1) : cv::Vec3f());
-    model.coefficients().push_back(c);
-  }
+  Model model = testing::SyntheticShModel(11, 0.1f);
   model.valid() = cv::Mat(16, 24, CV_8U, cv::Scalar(1));
   model.valid().at<uint8_t>(3, 5) = 0;
   return model;

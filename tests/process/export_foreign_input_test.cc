@@ -11,7 +11,7 @@
 #include "process/export/load_any.h"
 #include "process/export/relight_files.h"
 #include "process/model/light_direction.h"
-#include "process/model/pca.h"
+#include "process/model/pca/pca.h"
 #include "tests/support/run_rig.h"
 
 namespace rig {

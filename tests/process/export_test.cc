@@ -14,9 +14,9 @@
 #include "process/export/load_any.h"
 #include "process/export/relight_coefficients.h"
 #include "process/export/relight_files.h"
-#include "process/model/fit.h"
-#include "process/model/model.h"
-#include "process/model/rti.h"
+#include "process/model/harmonic/fit.h"
+#include "process/model/harmonic/model.h"
+#include "process/model/harmonic/loo.h"
 #include "tests/support/run_rig.h"
 
 namespace rig {

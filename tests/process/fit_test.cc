@@ -1,6 +1,6 @@
 // Fitting on the rig's 40-pose grid with known truth: identifiability, conditioning, RLS vs
 // the paper's quadrature, order selection, refusals, missing samples, extrapolation.
-#include "process/model/fit.h"
+#include "process/model/harmonic/fit.h"
 
 #include <cmath>
 #include <cstdio>
@@ -9,8 +9,8 @@
 
 #include <gtest/gtest.h>
 
-#include "process/model/model.h"
-#include "process/model/sh.h"
+#include "process/model/harmonic/model.h"
+#include "process/model/harmonic/sh.h"
 
 namespace rig {
 namespace {

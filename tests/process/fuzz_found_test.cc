@@ -12,7 +12,7 @@
 #include "process/io/exr_io.h"
 #include "process/io/image_io.h"
 #include "process/io/jpeg_io.h"
-#include "process/model/model.h"
+#include "process/model/harmonic/model.h"
 
 namespace rig {
 namespace {

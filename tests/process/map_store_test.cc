@@ -3,7 +3,7 @@
 // for half and float maps, with saturated and black flags, non-finite and negative samples,
 // one map without a flags channel, bands smaller than the selection and two workers; what
 // the store refuses and when it turns itself off.
-#include "process/model/map_store.h"
+#include "process/model/session/map_store.h"
 
 #include <unistd.h>
 
@@ -16,9 +16,9 @@
 
 #include "process/hdr/hdr.h"
 #include "process/io/exr_io.h"
-#include "process/model/fit.h"
-#include "process/model/model_stream.h"
-#include "process/model/selection_gram.h"
+#include "process/model/harmonic/fit.h"
+#include "process/model/session/model_stream.h"
+#include "process/model/session/selection_gram.h"
 
 namespace rig {
 namespace {

@@ -4,7 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "process/io/exr_io.h"
-#include "process/model/model.h"
+#include "process/model/harmonic/model.h"
 #include "tests/support/run_rig.h"
 
 namespace rig {

@@ -17,10 +17,10 @@
 #include <gtest/gtest.h>
 
 #include "process/io/exr_io.h"
-#include "process/model/fit.h"
-#include "process/model/map_store.h"
-#include "process/model/model.h"
-#include "process/model/model_stream.h"
+#include "process/model/harmonic/fit.h"
+#include "process/model/session/map_store.h"
+#include "process/model/harmonic/model.h"
+#include "process/model/session/model_stream.h"
 #include "sim/scene.h"
 
 namespace rig {

@@ -1,6 +1,6 @@
 // The neural model on a synthetic Lambertian + Phong scene with known truth: held-out lights
 // against the per-pixel mean, determinism, the stored files, masked samples never read.
-#include "process/model/neural.h"
+#include "process/model/neural/neural.h"
 
 #include <cmath>
 #include <cstdio>

@@ -2,7 +2,7 @@
 // textured Lambertian + Phong scene with a cast shadow and clipped highlights): the same
 // choice, the same info.json and the same plane files, byte for byte, with bands far smaller
 // than the solver's blocks; and what it refuses.
-#include "process/model/pca_stream.h"
+#include "process/model/pca/pca_stream.h"
 
 #include <unistd.h>
 
@@ -16,8 +16,8 @@
 #include <gtest/gtest.h>
 
 #include "process/io/jpeg_io.h"
-#include "process/model/pca_choice.h"
-#include "process/model/rti_fit.h"
+#include "process/model/pca/pca_choice.h"
+#include "process/model/any/rti_fit.h"
 
 namespace rig {
 namespace {

@@ -11,10 +11,10 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "process/io/jpeg_io.h"
-#include "process/model/fit.h"
+#include "process/model/harmonic/fit.h"
 #include "process/model/holdout.h"
-#include "process/model/pca.h"
-#include "process/model/pca_choice.h"
+#include "process/model/pca/pca.h"
+#include "process/model/pca/pca_choice.h"
 
 namespace rig {
 namespace {

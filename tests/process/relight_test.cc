@@ -13,6 +13,7 @@
 
 #include "process/model/light_direction.h"
 #include "tests/support/run_rig.h"
+#include "tests/support/synthetic_model.h"
 
 namespace rig {
 namespace {
@@ -21,23 +22,7 @@ namespace fs = std::filesystem;
 
 // An SH order-2 model of a 24x16 image with seeded random coefficients (a positive constant
 // term, so renders are bright), sampled on the default grid: h 0-90, v 0-30, 10° steps.
-Model SyntheticModel() {
-  ModelInfo info;
-  info.lamp_radiance_rgb = {2.0, 1.5, 1.0};
-  for (double v = 0; v <= 30; v += 10)
-    for (double h = 0; h <= 90; h += 10) info.lamp_directions.push_back(LightDirection(h, v));
-  info.sample_spacing_deg = SampleSpacingDeg(info.lamp_directions);
-  Model model(Basis(BasisKind::kSh, 2), info, 24, 16);
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<float> u(-0.05f, 0.05f);
-  for (int k = 0; k < model.basis().size(); ++k) {
-    cv::Mat c(16, 24, CV_32FC3);
-    for (auto it = c.begin<cv::Vec3f>(); it != c.end<cv::Vec3f>(); ++it)
-      *it = cv::Vec3f(u(rng), u(rng), u(rng)) + (k == 0 ? cv::Vec3f(1, 1, 1) : cv::Vec3f());
-    model.coefficients().push_back(c);
-  }
-  return model;
-}
+Model SyntheticModel() { return testing::SyntheticShModel(7, 0.05f); }
 
 RelightLamp Lamp(double h, double v, std::array<double, 3> rgb = {1, 1, 1}, double intensity = 1) {
   RelightLamp l;

@@ -1,5 +1,5 @@
 // Real spherical harmonics (paper eq. 2-5) and the HSH/PTM bases against independent truth.
-#include "process/model/sh.h"
+#include "process/model/harmonic/sh.h"
 
 #include <cmath>
 #include <numbers>
@@ -7,7 +7,7 @@
 
 #include <gtest/gtest.h>
 
-#include "process/model/basis.h"
+#include "process/model/harmonic/basis.h"
 
 namespace rig {
 namespace {

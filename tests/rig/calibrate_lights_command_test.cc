@@ -14,7 +14,7 @@
 #include "process/geometry/photometric_stereo.h"
 #include "process/geometry/sphere_lights.h"
 #include "process/io/exr_io.h"
-#include "process/model/fit.h"
+#include "process/model/harmonic/fit.h"
 #include "sim/scene.h"
 #include "sim/truth.h"
 #include "tests/support/exif_jpeg.h"

@@ -12,10 +12,11 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "process/io/exr_io.h"
-#include "process/model/fit.h"
-#include "process/model/model.h"
-#include "process/model/rti.h"
+#include "process/model/harmonic/fit.h"
+#include "process/model/harmonic/model.h"
+#include "process/model/harmonic/loo.h"
 #include "tests/support/run_rig.h"
+#include "tests/support/synthetic_model.h"
 
 namespace rig {
 namespace {
@@ -26,12 +27,9 @@ using testing::RunRig;
 
 // A smooth 48x32 model in sRGB fit space, sampled on h 0-90, v 0-30 (10° steps).
 std::string WriteModel(const std::string& dir, BasisKind kind, int order, FitSpace space) {
-  ModelInfo info;
+  ModelInfo info = testing::DefaultGridInfo();
   info.method = FitMethod::kLs;
   info.transform.space = space;
-  for (double v = 0; v <= 30; v += 10)
-    for (double h = 0; h <= 90; h += 10) info.lamp_directions.push_back(LightDirection(h, v));
-  info.sample_spacing_deg = SampleSpacingDeg(info.lamp_directions);
   Model m(Basis(kind, order), info, 48, 32);
   const double b0 = m.basis().Eval(Vec3{0, 0, 1})[0];
   for (int k = 0; k < m.basis().size(); ++k) {

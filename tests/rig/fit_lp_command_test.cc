@@ -10,7 +10,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
-#include "process/model/fit.h"
+#include "process/model/harmonic/fit.h"
 #include "tests/support/run_rig.h"
 
 namespace rig {

@@ -10,7 +10,7 @@
 
 #include "capture/session/session_store.h"
 #include "process/io/exr_io.h"
-#include "rig/commands/session_run.h"
+#include "capture/daemon/session_model.h"
 #include "tests/support/run_rig.h"
 
 namespace rig {

@@ -29,14 +29,8 @@ using ::testing::Not;
 using testing::CommandResult;
 using testing::RunRig;
 
-const char* kSmall = R"([sim]
-width = 160
-height = 120
-[bracket]
-center_s = 0.02
-ev_step = 1.5
-count = 4
-)";
+// A small, fast dry run: 160x120, 40 poses x 4 exposures.
+const char* const kSmall = testing::kSmallDryRun;
 
 int CountMaps(const fs::path& s) {
   int n = 0;

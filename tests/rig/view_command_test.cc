@@ -26,11 +26,12 @@
 #include "process/export/relight_files.h"
 #include "process/io/exr_io.h"
 #include "process/io/jpeg_io.h"
-#include "process/model/fit.h"
+#include "process/model/harmonic/fit.h"
 #include "process/model/light_direction.h"
-#include "process/model/model.h"
-#include "process/model/pca.h"
+#include "process/model/harmonic/model.h"
+#include "process/model/pca/pca.h"
 #include "tests/support/run_rig.h"
+#include "tests/support/synthetic_model.h"
 
 // Last: it pulls in <resolv.h>, whose _res macro breaks Eigen's headers.
 #include <fcntl.h>
@@ -173,12 +174,9 @@ std::string Shots(const std::vector<std::pair<double, double>>& angles) {
 
 // A smooth sRGB-space SH model (exactly an HSH in relight's basis), 64x48.
 std::string WriteShModel(const std::string& dir, FitSpace space) {
-  ModelInfo info;
+  ModelInfo info = testing::DefaultGridInfo();
   info.method = FitMethod::kLs;
   info.transform.space = space;
-  for (double v = 0; v <= 30; v += 10)
-    for (double h = 0; h <= 90; h += 10) info.lamp_directions.push_back(LightDirection(h, v));
-  info.sample_spacing_deg = SampleSpacingDeg(info.lamp_directions);
   Model m(Basis(BasisKind::kSh, 2), info, 64, 48);
   const double b0 = m.basis().Eval(Vec3{0, 0, 1})[0];
   const double level = space == FitSpace::kLinear ? 1.5 : 0.45;

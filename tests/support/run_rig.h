@@ -36,6 +36,17 @@ pid_t SpawnRig(const std::vector<std::string>& args, const std::string& log_path
 // Waits for it; returns the exit code, or 128+N when killed by signal N.
 int WaitRig(pid_t pid);
 
+// A small, fast dry run's [sim] and [bracket]: 160x120, 40 poses x 4 exposures (for
+// WriteSimConfig's `extra`).
+inline constexpr const char* kSmallDryRun = R"([sim]
+width = 160
+height = 120
+[bracket]
+center_s = 0.02
+ev_step = 1.5
+count = 4
+)";
+
 // Writes config/sim.toml with `extra` TOML appended into `dir`/sim.toml, with the tables of
 // `extra` merged over the default ones (keys given in `extra` replace the defaults).
 std::string WriteSimConfig(const std::string& dir, const std::string& extra);

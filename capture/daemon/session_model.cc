@@ -1,0 +1,147 @@
+// The session's model after a capture, in named steps: the maps the grid has, where they are
+// read from (memory or files), the lamp radiance, the fit, the report.
+#include "capture/daemon/session_model.h"
+
+#include <memory>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "capture/plan/pose.h"
+#include "config/console.h"
+#include "config/log.h"
+#include "process/model/session/map_fit.h"
+#include "process/model/session/model_stream.h"
+
+namespace rig {
+namespace {
+
+// The fit's input from the session's grid: every pose with a radiance map, its direction and
+// quadrature weight; `keys` receives the pose names in the same order.
+Result<StreamFitInput> SessionMapInput(const Session& session, std::vector<std::string>* keys) {
+  const Config& config = session.config();
+  const SessionLayout& layout = session.layout();
+  StreamFitInput in;
+  std::vector<double> h, v;
+  for (const Pose& p : PlanGrid(config.grid)) {
+    fs::path path = layout.Hdr(p.Name());
+    if (!fs::exists(path)) {
+      Log("process")->warn("pose={} has no radiance map; the model is fitted without it", p.Name());
+      continue;
+    }
+    keys->push_back(p.Name());
+    in.paths.push_back(path.string());
+    in.directions.push_back(LightDirection(p.h_deg, p.v_deg, config.light_frame));
+    h.push_back(p.h_deg);
+    v.push_back(p.v_deg);
+  }
+  if (in.paths.size() < 2)
+    return MakeError(ErrorCode::kInvalidInput, layout.hdr().string(),
+                     "{} radiance map(s): too few to fit a model", in.paths.size());
+  in.weights = GridQuadratureWeights(h, v);
+  in.light_frame = config.light_frame;
+  in.lamp_radiance_rgb = config.lamp.radiance_rgb;
+  return in;
+}
+
+// The maps in memory when every one is held (the session's run kept them as they were
+// merged), else the files; *source says which.
+Result<std::unique_ptr<MapBands>> SessionBands(const MapStore* maps,
+                                               const std::vector<std::string>& keys,
+                                               const std::vector<std::string>& paths,
+                                               std::string* source) {
+  auto log = Log("process");
+  *source = "the radiance map files";
+  if (maps != nullptr) {
+    if (maps->off()) {
+      log->info("the model is fitted from the files: {}", maps->off_reason());
+    } else if (auto b = maps->Bands(keys); b.ok()) {
+      *source = "the maps in memory";
+      return std::move(b).value();
+    } else {
+      log->info("the model is fitted from the files: {}", b.error().ToString());
+    }
+  }
+  return OpenMapFiles(paths);
+}
+
+// model/report.md: the choice, and what each order costs and gives.
+std::string SessionFitReport(const Session& session, const StreamFitOutput& fit, double bpp) {
+  const ProcessConfig& process = session.config().process;
+  const std::string unit = FitSpaceUnit(process.fit_space);
+  std::string md = fmt::format(
+      "# Reflectance model of {}\n\nbasis {}, method {}, fit space {}; chosen order {} "
+      "({} terms); leave-one-out RMS error {:.5g} {} (the selection's own "
+      "estimate); {:.1f} bytes per pixel on disk; fitted in {:.2f} s\n\n"
+      "| order | terms | supported | LOO RMS error ({}) | condition | λ (relative) |\n"
+      "|---|---|---|---|---|---|\n",
+      session.layout().root.string(), process.basis, process.fit_method, process.fit_space,
+      fit.selection.order, fit.selection.projector.basis.size(), fit.loo_rmse, unit, bpp,
+      fit.time_s, unit);
+  for (const auto& o : fit.selection.orders) {
+    md += o.supported ? fmt::format("| {} | {} | yes | {:.5g} | {:.3g} | {:.3g} |\n", o.order, o.terms,
+                                    o.loo_rmse, o.condition, o.lambda_relative)
+                      : fmt::format("| {} | {} | no: {} | | | |\n", o.order, o.terms, o.refusal);
+  }
+  md += fmt::format("\npixels with missing samples: {}, flagged: {}\n", fit.missing.pixels_with_missing,
+                    fit.missing.flagged);
+  return md;
+}
+
+}  // namespace
+
+std::string FitSpaceUnit(const std::string& space) {
+  if (space == "log") return "of ln(reflectance + eps), reflectance = radiance / lamp radiance";
+  if (space == "srgb") return "of sRGB-encoded reflectance (radiance / lamp radiance)";
+  return "of reflectance (radiance / lamp radiance), linear";
+}
+
+Status FitSessionModel(const Session& session, const MapStore* maps) {
+  auto log = Log("process");
+  const Config& config = session.config();
+  const SessionLayout& layout = session.layout();
+  std::vector<std::string> keys;
+  RIG_ASSIGN_OR_RETURN(StreamFitInput in, SessionMapInput(session, &keys));
+  std::string source;
+  RIG_ASSIGN_OR_RETURN(std::unique_ptr<MapBands> bands, SessionBands(maps, keys, in.paths, &source));
+  // A near lamp ([light_frame] lamp_distance_mm > 0): per-pixel fall-off, per-tile directions.
+  in.near_lamp = NearLamp::FromLightFrame(config.light_frame, bands->height());
+  const auto& patch = config.process.reference_patch_px;
+  if (patch[2] > 0 && patch[3] > 0) {
+    // Lamp radiance from the reference patch: only the patch of each map is read.
+    RIG_ASSIGN_OR_RETURN(in.lamp_radiance_rgb,
+                         LampRadianceFromPatch(*bands, patch, config.process.reference_reflectance,
+                                               in.near_lamp, in.directions));
+    log->info("lamp radiance from the reference patch: R={:.4g} G={:.4g} B={:.4g}",
+              in.lamp_radiance_rgb[0], in.lamp_radiance_rgb[1], in.lamp_radiance_rgb[2]);
+  }
+  RIG_ASSIGN_OR_RETURN(FitOptions options, FitOptionsFromConfig(config.process));
+  options.threads = config.process.threads;
+  ExrPixelType type = config.process.model_pixel_type == "float" ? ExrPixelType::kFloat : ExrPixelType::kHalf;
+  in.compression = *ParseExrCompression(config.process.model_compression);  // validated on load
+  // model/ inside the session, never through a link.
+  RIG_ASSIGN_OR_RETURN(fs::path model_dir, EnsureSessionFolder(layout.root, "model"));
+  fs::path out = model_dir / "model.exr";
+  RIG_ASSIGN_OR_RETURN(StreamFitOutput fit, FitModelFromBands(*bands, in, options, out.string(), type));
+  log->info("model fitted from {}", source);
+  if (in.near_lamp.near()) {
+    log->info("near lamp {:.0f} mm: samples divided by their fall-off, {} px tiles ({} projectors)",
+              in.near_lamp.distance_mm, fit.near_tile_px, fit.projectors);
+  }
+  std::error_code ec;
+  const auto model_bytes = fs::file_size(out, ec);
+  const double pixels = static_cast<double>(fit.width) * static_cast<double>(fit.height);
+  const double bpp = ec || pixels <= 0 ? 0.0 : static_cast<double>(model_bytes) / pixels;
+  Status st = WriteFileAtomic(layout.model() / "report.md", SessionFitReport(session, fit, bpp));
+  if (!st.ok()) log->warn("{}", st.error().ToString());
+  log->info("model written file={} order={} terms={} loo_rmse={:.5g} time_s={:.2f}", out.string(),
+            fit.selection.order, fit.selection.projector.basis.size(), fit.loo_rmse, fit.time_s);
+  ConsoleLine(stdout, fmt::format("model: {} (order {}, {} terms, {:.1f} B/px; leave-one-out RMS "
+                                  "error {:.4g} {}; {:.2f} s)",
+                                  out.string(), fit.selection.order,
+                                  fit.selection.projector.basis.size(), bpp, fit.loo_rmse,
+                                  FitSpaceUnit(config.process.fit_space), fit.time_s));
+  return Ok();
+}
+
+}  // namespace rig
