@@ -169,6 +169,61 @@ int WriteTilesIfWanted(const ExportArgs& a, int width, int height) {
 
 }  // namespace
 
+// The chosen format written, and read back as a reader of the file would; *what says what.
+static Result<RelightCoefficients> WriteExportFormat(const ExportArgs& a, const RelightCoefficients& c,
+                                                     std::string* what_out) {
+  std::string& what = *what_out;
+  Status written = Ok();
+  Result<RelightCoefficients> back = MakeError(ErrorCode::kInternal, "export", "not read");
+  if (a.format == "relight") {
+    WebWriteOptions o;
+    o.quality = a.quality;
+    o.ycbcr = !a.jpeg_rgb;
+    written = WriteRelightWeb(a.out, c, o);
+    const int nplanes = c.lrgb ? 9 : 3 * c.terms;
+    what = fmt::format("relight web format, {}, {} planes in {} JPEGs q{} ({})", c.Summary(),
+                       nplanes, (nplanes + 2) / 3, a.quality, a.jpeg_rgb ? "RGB" : "YCbCr 4:4:4");
+    if (written.ok()) back = ReadRelightWeb(a.out);
+  } else if (a.format == "ptm") {
+    written = WritePtm(a.out, c);
+    what = fmt::format("PTM 1.2, {}, raw", c.lrgb ? "PTM_FORMAT_LRGB" : "PTM_FORMAT_RGB");
+    if (written.ok()) back = ReadPtm(a.out);
+  } else {
+    written = WriteRti(a.out, c);
+    what = fmt::format("HSH .rti (#HSH1.2, rti_type 3), {} terms per channel, 1-byte elements", c.terms);
+    if (written.ok()) back = ReadRti(a.out);
+  }
+  if (!written.ok()) return written.error();
+  if (!back.ok()) return back.error().Within("reading back what was written");
+  return back;
+}
+
+// What the format does not hold, said once.
+static void PrintExportNotes(const ExportArgs& a, const ReflectanceModel& model_ref,
+                             const Conversion& conversion_ref) {
+  const ReflectanceModel* model = &model_ref;
+  const Conversion* conversion = &conversion_ref;
+  const LightFrameConfig& frame = model->light_frame();
+  if (frame.h_sign != 1 || frame.v_sign != 1 || frame.h_offset_deg != 0 || frame.v_offset_deg != 0) {
+    std::printf("  note: the format holds object-frame directions; the model's light frame "
+                "(rig angles) is not stored\n");
+  }
+  const auto e = model->lamp_radiance_rgb();
+  if (model->encoding() == ValueEncoding::kLinear && conversion->gain == 1 &&
+      (e[0] != 1 || e[1] != 1 || e[2] != 1)) {
+    std::printf("  note: values are the sRGB encoding of rho (a unit lamp); the capture lamp's "
+                "radiance (%g, %g, %g) is not stored\n", e[0], e[1], e[2]);
+  }
+  if (a.format == "relight" && a.jpeg_rgb) {
+    std::printf("  note: RGB-colour-space planes: relight's C++ reader (Rti::load) decodes planes as "
+                "YCbCr and would misread them; its web viewer and this reader do not\n");
+  }
+  if (conversion->gain != 1) {
+    std::printf("  note: rho was scaled by %.4g to fit 8-bit values (relight stores display values)\n",
+                conversion->gain);
+  }
+}
+
 int RunExport(int argc, char** argv) {
   CLI::App app{"Write a reflectance model in relight's web format (info.json + plane_N.jpg, types "
                "ptm and hsh) or as RTIViewer's .ptm (PTM 1.2, RGB or LRGB) or .rti (HSH). Where "
@@ -264,30 +319,9 @@ int RunExport(int argc, char** argv) {
   if (!conversion.ok()) return ReportError("export", conversion.error());
   const RelightCoefficients& c = conversion->coefficients;
 
-  Status written = Ok();
   std::string what;
-  Result<RelightCoefficients> back = MakeError(ErrorCode::kInternal, "export", "not read");
-  if (a.format == "relight") {
-    WebWriteOptions o;
-    o.quality = a.quality;
-    o.ycbcr = !a.jpeg_rgb;
-    written = WriteRelightWeb(a.out, c, o);
-    const int nplanes = c.lrgb ? 9 : 3 * c.terms;
-    what = fmt::format("relight web format, {}, {} planes in {} JPEGs q{} ({})", c.Summary(),
-                       nplanes, (nplanes + 2) / 3, a.quality, a.jpeg_rgb ? "RGB" : "YCbCr 4:4:4");
-    if (written.ok()) back = ReadRelightWeb(a.out);
-  } else if (a.format == "ptm") {
-    written = WritePtm(a.out, c);
-    what = fmt::format("PTM 1.2, {}, raw", c.lrgb ? "PTM_FORMAT_LRGB" : "PTM_FORMAT_RGB");
-    if (written.ok()) back = ReadPtm(a.out);
-  } else {
-    written = WriteRti(a.out, c);
-    what = fmt::format("HSH .rti (#HSH1.2, rti_type 3), {} terms per channel, 1-byte elements", c.terms);
-    if (written.ok()) back = ReadRti(a.out);
-  }
-  if (!written.ok()) return ReportError("export", written.error());
-  if (!back.ok()) return ReportError("export", back.error().Within("reading back what was written"));
-
+  Result<RelightCoefficients> back = WriteExportFormat(a, c, &what);
+  if (!back.ok()) return ReportError("export", back.error());
   std::printf("rig export: wrote %s (%s, %dx%d)\n", a.out.c_str(), what.c_str(), c.width, c.height);
   std::printf("  from %s: %s\n", path.c_str(), model->Describe().c_str());
   std::printf("  %s\n", conversion->how.c_str());
@@ -304,25 +338,7 @@ int RunExport(int argc, char** argv) {
   const auto reread = WrapRelight(std::move(*back), a.out);
   std::printf("  as written, read back: %s PSNR against the source over %zu lights (8-bit sRGB)\n",
               Db(RenderPsnrDb(*model, *reread, lights, conversion->gain)).c_str(), lights.size());
-  const LightFrameConfig& frame = model->light_frame();
-  if (frame.h_sign != 1 || frame.v_sign != 1 || frame.h_offset_deg != 0 || frame.v_offset_deg != 0) {
-    std::printf("  note: the format holds object-frame directions; the model's light frame "
-                "(rig angles) is not stored\n");
-  }
-  const auto e = model->lamp_radiance_rgb();
-  if (model->encoding() == ValueEncoding::kLinear && conversion->gain == 1 &&
-      (e[0] != 1 || e[1] != 1 || e[2] != 1)) {
-    std::printf("  note: values are the sRGB encoding of rho (a unit lamp); the capture lamp's "
-                "radiance (%g, %g, %g) is not stored\n", e[0], e[1], e[2]);
-  }
-  if (a.format == "relight" && a.jpeg_rgb) {
-    std::printf("  note: RGB-colour-space planes: relight's C++ reader (Rti::load) decodes planes as "
-                "YCbCr and would misread them; its web viewer and this reader do not\n");
-  }
-  if (conversion->gain != 1) {
-    std::printf("  note: rho was scaled by %.4g to fit 8-bit values (relight stores display values)\n",
-                conversion->gain);
-  }
+  PrintExportNotes(a, *model, *conversion);
   if (a.format == "relight") return WriteTilesIfWanted(a, c.width, c.height);
   return 0;
 }

@@ -91,6 +91,55 @@ nlohmann::json WardDisplay(const ReflectanceModel& model, const Vec3& light, dou
 
 }  // namespace
 
+// A model not in relight's web format: converted to it in `out` (as rig export does), read
+// back and compared with the source; *model, *lights, *gain and *how receive what the page needs.
+static Status ConvertForView(const std::string& path, const std::string& ext, int quality,
+                             const std::string& out, std::unique_ptr<ReflectanceModel>* model_out,
+                             std::vector<Vec3>* lights_out, double* gain, std::string* how) {
+  std::unique_ptr<ReflectanceModel>& model = *model_out;
+  std::vector<Vec3>& lights = *lights_out;
+  RelightTarget target;
+  Result<Conversion> conversion = MakeError(ErrorCode::kInternal, "view", "not converted");
+  if (ext == ".exr") {
+    auto m = LoadModel(path);
+    if (!m.ok()) return m.error();
+    const std::string family = m->basis().name();
+    target.type = family.rfind("ptm", 0) == 0 ? RelightType::kPtm : RelightType::kHsh;
+    target.terms = target.type == RelightType::kPtm ? 6 : (family == "hsh" && m->basis().size() <= 4 ? 4 : 9);
+    lights = m->info().lamp_directions;
+    conversion = ConvertToRelight(*m, target);
+    model = WrapHarmonic(std::move(*m));
+  } else {
+    auto m = LoadAnyModel(path);
+    if (!m.ok()) return m.error();
+    model = std::move(*m);
+    const RelightCoefficients* rc = RelightCoefficientsOf(*model);
+    if (rc) {
+      target.type = rc->type;
+      target.terms = rc->terms;
+      target.lrgb = rc->lrgb;
+      lights = rc->lights;
+    } else {
+      target.type = RelightType::kHsh;
+      target.terms = 9;
+    }
+    conversion = ConvertToRelight(*model, target);
+  }
+  if (!conversion.ok()) return conversion.error();
+  WebWriteOptions o;
+  o.quality = quality;
+  if (Status st = WriteRelightWeb(out, conversion->coefficients, o); !st.ok()) return st.error();
+  auto back = ReadRelightWeb(out);
+  if (!back.ok()) return back.error().Within("reading back what was written");
+  const auto reread = WrapRelight(std::move(*back), out);
+  std::vector<Vec3> at = lights.empty() ? HemisphereDirections() : lights;
+  const double psnr = RenderPsnrDb(*model, *reread, at, conversion->gain);
+  *gain = conversion->gain;
+  *how = fmt::format("{}; as written, {} against the source over {} lights (8-bit sRGB)", conversion->how,
+                    std::isinf(psnr) ? std::string("identical") : fmt::format("{:.2f} dB", psnr), at.size());
+  return Ok();
+}
+
 int RunView(int argc, char** argv) {
   CLI::App app{"Write a self-contained relighting page for a model: the model in relight's web "
                "format (copied if it is one, converted otherwise, as rig export does), deep-zoom "
@@ -167,45 +216,8 @@ int RunView(int argc, char** argv) {
       if (Status st = CopyFile(fs::path(path) / n, fs::path(a.out) / n); !st.ok()) return ReportError("view", st.error());
     how = fmt::format("{} web format copied as it is (nothing refitted)", web_type);
   } else {
-    RelightTarget target;
-    Result<Conversion> conversion = MakeError(ErrorCode::kInternal, "view", "not converted");
-    if (ext == ".exr") {
-      auto m = LoadModel(path);
-      if (!m.ok()) return ReportError("view", m.error());
-      const std::string family = m->basis().name();
-      target.type = family.rfind("ptm", 0) == 0 ? RelightType::kPtm : RelightType::kHsh;
-      target.terms = target.type == RelightType::kPtm ? 6 : (family == "hsh" && m->basis().size() <= 4 ? 4 : 9);
-      lights = m->info().lamp_directions;
-      conversion = ConvertToRelight(*m, target);
-      model = WrapHarmonic(std::move(*m));
-    } else {
-      auto m = LoadAnyModel(path);
-      if (!m.ok()) return ReportError("view", m.error());
-      model = std::move(*m);
-      const RelightCoefficients* rc = RelightCoefficientsOf(*model);
-      if (rc) {
-        target.type = rc->type;
-        target.terms = rc->terms;
-        target.lrgb = rc->lrgb;
-        lights = rc->lights;
-      } else {
-        target.type = RelightType::kHsh;
-        target.terms = 9;
-      }
-      conversion = ConvertToRelight(*model, target);
-    }
-    if (!conversion.ok()) return ReportError("view", conversion.error());
-    WebWriteOptions o;
-    o.quality = a.quality;
-    if (Status st = WriteRelightWeb(a.out, conversion->coefficients, o); !st.ok()) return ReportError("view", st.error());
-    auto back = ReadRelightWeb(a.out);
-    if (!back.ok()) return ReportError("view", back.error().Within("reading back what was written"));
-    const auto reread = WrapRelight(std::move(*back), a.out);
-    std::vector<Vec3> at = lights.empty() ? HemisphereDirections() : lights;
-    const double psnr = RenderPsnrDb(*model, *reread, at, conversion->gain);
-    gain = conversion->gain;
-    how = fmt::format("{}; as written, {} against the source over {} lights (8-bit sRGB)", conversion->how,
-                      std::isinf(psnr) ? std::string("identical") : fmt::format("{:.2f} dB", psnr), at.size());
+    if (Status st = ConvertForView(path, ext, a.quality, a.out, &model, &lights, &gain, &how); !st.ok())
+      return ReportError("view", st.error());
   }
 
   if (model) {
