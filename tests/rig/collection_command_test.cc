@@ -77,9 +77,12 @@ struct SnakeRun {
   std::string log;
 };
 
-SnakeRun Snakemake(const fs::path& dir, const std::string& args) {
+// Runs snakemake in `dir`; with `timeout_s`, killed after that long (status 124).
+SnakeRun Snakemake(const fs::path& dir, const std::string& args, int timeout_s = 0) {
   const fs::path log = dir / "snakemake-run.log";
-  const std::string cmd = "cd '" + dir.string() + "' && snakemake " + args + " > '" + log.string() + "' 2>&1";
+  const std::string limit = timeout_s > 0 ? "timeout -s KILL " + std::to_string(timeout_s) + " " : "";
+  const std::string cmd =
+      "cd '" + dir.string() + "' && " + limit + "snakemake " + args + " > '" + log.string() + "' 2>&1";
   const int rc = std::system(cmd.c_str());
   return {WIFEXITED(rc) ? WEXITSTATUS(rc) : 128, ReadText(log)};
 }
@@ -235,6 +238,96 @@ TEST_F(CollectionCommand, RerunsOnlyTheStepsOfTheSessionWhoseProcessTableChanged
   ASSERT_EQ(slurm.status, 0) << slurm.log;
   EXPECT_EQ(Keys(Jobs(slurm.log)), frame_jobs) << slurm.log;
   EXPECT_THAT(slurm.log, HasSubstr("mem_mb=500"));  // the fit job's declared memory
+}
+
+// Files named exactly `name` anywhere below `dir` (links not followed).
+std::vector<fs::path> FilesNamed(const fs::path& dir, const std::string& name) {
+  std::vector<fs::path> out;
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::recursive_directory_iterator();
+       it.increment(ec))
+    if (it->path().filename() == name) out.push_back(it->path());
+  return out;
+}
+
+// Session folders whose names would run code if pasted into a shell line ("$(...)",
+// backticks, quotes, ';', a newline), and a .lp with comments in such a folder: the workflow
+// passes every path quoted, so nothing runs (no PWNED file anywhere), and every entry is
+// processed.
+TEST_F(CollectionCommand, HostileFolderNamesRunNoCodeAndTheirEntriesAreProcessed) {
+  const std::vector<std::string> names = {"a $(touch PWNED)", "b `touch PWNED`",
+                                          "c'; touch PWNED; '", "d\"; touch PWNED; \"",
+                                          "e\ntouch PWNED\n"};
+  const fs::path root = Root("hroot", names);
+  // A .lp capture with '#' comments and blank lines, in a hostile folder too: its images
+  // (absolute paths to the shared icon) are the workflow's inputs, read as rig reads them.
+  const fs::path icon = fs::path(testing::SharedDir()) / "data/rti/neuralrti-example";
+  const fs::path lpdir = root / "f $(touch PWNED) `touch PWNED`";
+  fs::create_directories(lpdir);
+  {
+    std::istringstream in(ReadText(icon / "dirs.lp"));
+    std::ofstream lp(lpdir / "dirs.lp");
+    lp << "# written by a dome's software\n\n   # indented comment\n";
+    std::string line;
+    std::getline(in, line);
+    lp << line << "\n";
+    int i = 0;
+    while (std::getline(in, line)) {
+      if (line.empty()) continue;
+      lp << (icon / line).string() << "\n";
+      if (++i % 20 == 0) lp << "# a comment between images\n";
+    }
+  }
+  const fs::path c = *dir_ / "H";
+  auto init = RunRig("collection init " + c.string() + " --root " + root.string() +
+                     " --formats relight,ptm --no-evaluate-sessions --no-evaluate-lp "
+                     "--lp-fit-arg=--downsample --lp-fit-arg=4");
+  ASSERT_EQ(init.status, 0) << init.output;
+
+  SnakeRun run = Snakemake(c, "-j2");
+  EXPECT_TRUE(FilesNamed(*dir_, "PWNED").empty()) << FilesNamed(*dir_, "PWNED").front();
+  EXPECT_FALSE(fs::exists(c / "PWNED"));
+  ASSERT_EQ(run.status, 0) << run.log;
+  const std::set<std::string> jobs = Keys(Jobs(run.log));
+  for (const auto& n : names) {
+    std::string entry = n;
+    for (char& ch : entry)
+      if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '.' && ch != '_' && ch != '-') ch = '_';
+    EXPECT_TRUE(jobs.count("fit_session[name=" + entry + "]")) << entry << "\n" << run.log;
+    EXPECT_TRUE(fs::exists(root / n / "model/model.exr")) << n;
+    EXPECT_TRUE(fs::exists(c / "results" / entry / "export/ptm/model.ptm")) << entry;
+    EXPECT_TRUE(fs::exists(c / "results" / entry / "export/relight/info.json")) << entry;
+  }
+  // The .lp's 72 images were found past its comments, and its model fitted.
+  std::string lp_entry;
+  for (const auto& k : jobs)
+    if (k.starts_with("fit_lp[")) lp_entry = k;
+  EXPECT_FALSE(lp_entry.empty()) << run.log;
+  bool lp_model = false;
+  for (const auto& e : fs::directory_iterator(c / "results"))
+    if (e.path().filename().string().starts_with("f_")) lp_model = fs::exists(e.path() / "model/info.json");
+  EXPECT_TRUE(lp_model) << run.log;
+  EXPECT_THAT(ReadText(c / "report/collection.csv"), HasSubstr(",lp,"));
+}
+
+// A root holding link loops (a link to the root itself, a link to a parent): planning visits
+// each folder once, warns naming the link, and finishes; the session in it is still planned.
+TEST_F(CollectionCommand, LinkLoopsInTheRootAreSkippedWithAWarningAndPlanningEnds) {
+  const fs::path root = Root("lroot", {"deep/L1"});
+  fs::create_directory_symlink(root, root / "loop");
+  fs::create_directory_symlink("..", root / "deep/up");
+  const fs::path c = *dir_ / "L";
+  auto init = RunRig("collection init " + c.string() + " --root " + root.string() +
+                     " --no-evaluate-sessions");
+  ASSERT_EQ(init.status, 0) << init.output;
+  // Bounded: a walk that followed the loop would be killed after 120 s (status 137).
+  SnakeRun plan = Snakemake(c, "-n -j2", 120);
+  ASSERT_EQ(plan.status, 0) << plan.log;
+  EXPECT_THAT(plan.log, HasSubstr((root / "loop").string() + ": skipped")) << plan.log;
+  EXPECT_THAT(plan.log, HasSubstr((root / "deep/up").string() + ": skipped")) << plan.log;
+  EXPECT_THAT(plan.log, HasSubstr("link loop"));
+  EXPECT_TRUE(Keys(Jobs(plan.log)).count("merge[name=deep__L1]")) << plan.log;
+  EXPECT_EQ(Keys(Jobs(plan.log)).count("merge[name=loop__deep__L1]"), 0u) << plan.log;
 }
 
 TEST_F(CollectionCommand, KilledAndStartedAgainWritesEveryOutputExactlyOnce) {
