@@ -2,6 +2,7 @@
 #include "sim/adaptive_eval.h"
 
 #include <algorithm>
+#include <functional>
 #include <array>
 #include <cmath>
 
@@ -112,6 +113,86 @@ cv::Mat MeteringFrame(const LdrFrame& f, const ResponseCurve& g) {
   return m;
 }
 
+ResponseCurve TruthResponse(const SimResponse& sr) {
+  ResponseCurve g;
+  for (int c = 0; c < 3; ++c) {
+    for (int z = 0; z < 256; ++z) g.log_exposure[c].push_back(sr.LogExposure(c, z));
+  }
+  g.id = "truth";
+  return g;
+}
+
+// The planner's window: what every channel records usefully, never longer than the fixed
+// bracket's longest (no chasing darkness it leaves too).
+AdaptiveBracketOptions PlannerOptions(const SimResponse& sr, const AdaptiveEvalOptions& eo,
+                                      const std::vector<Seconds>& fixed,
+                                      const std::vector<Seconds>& offered) {
+  AdaptiveBracketOptions ao;
+  ao.x_lo = 0;
+  ao.x_hi = 1e300;
+  for (int c = 0; c < 3; ++c) {
+    ao.x_lo = std::max(ao.x_lo, std::exp(sr.LogExposure(c, eo.z_lo)));
+    ao.x_hi = std::min(ao.x_hi, std::exp(sr.LogExposure(c, eo.z_hi)));
+  }
+  ao.overlap_stops = eo.overlap_stops;
+  ao.headroom_stops = eo.headroom_stops;
+  ao.max_exposure = fixed.back();
+  ao.min_exposure = offered.front();
+  return ao;
+}
+
+// Share of pixel-channels clipped in a frame: at level 250 or above (a JPEG's clipped
+// highlight decodes a few levels below 255).
+double ClippedShare(const LdrFrame& f) {
+  const cv::Mat flat = f.image.reshape(1);
+  return double(cv::countNonZero(flat >= 250)) / double(flat.total());
+}
+
+using Shooter = std::function<Result<LdrFrame>(Seconds)>;
+
+// One pose's adaptive bracket: at the first pose a metering frame at the fixed bracket's
+// centre, then the frames planned from the metering (the previous pose's map), then, while
+// the top frame clips more than planned (a brighter pose), one shorter frame at a time.
+// Sorted by exposure; the plan written into row->plan.
+Result<Bracket> AdaptiveBracketFor(const Shooter& shoot, const ResponseCurve& g,
+                                   const std::vector<Seconds>& fixed,
+                                   const std::vector<Seconds>& offered,
+                                   const AdaptiveBracketOptions& ao, const AdaptiveEvalOptions& eo,
+                                   cv::Mat* metering, AdaptivePoseRow* row) {
+  Bracket ab;
+  if (metering->empty()) {
+    RIG_ASSIGN_OR_RETURN(LdrFrame f, shoot(fixed[fixed.size() / 2]));
+    *metering = MeteringFrame(f, g);
+    ab.push_back(std::move(f));
+    row->plan = fmt::format("metering {:.4g} s; ", ab.back().exposure.count());
+  }
+  const cv::Mat flat = metering->reshape(1, 1);
+  RIG_ASSIGN_OR_RETURN(AdaptivePlan plan,
+                       PlanAdaptiveBracket(std::span<const float>(flat.ptr<float>(), flat.total()),
+                                           offered, ao));
+  for (const auto& pf : plan.frames) {
+    RIG_ASSIGN_OR_RETURN(LdrFrame f, shoot(pf.exposure));
+    ab.push_back(std::move(f));
+    row->plan += fmt::format("{:.4g} s ({}); ", pf.exposure.count(), pf.reason);
+  }
+  for (int extra = 0; extra < 8; ++extra) {
+    auto top = std::min_element(ab.begin(), ab.end(), [](const LdrFrame& a, const LdrFrame& b) {
+      return a.exposure < b.exposure;
+    });
+    if (ClippedShare(*top) <= eo.reshoot_clipped_fraction) break;
+    auto shorter = std::find_if(offered.rbegin(), offered.rend(), [&](Seconds s) {
+      return s.count() <= top->exposure.count() * std::exp2(-2.0);
+    });
+    if (shorter == offered.rend()) break;
+    RIG_ASSIGN_OR_RETURN(LdrFrame f, shoot(*shorter));
+    row->plan += fmt::format("{:.4g} s (re-shot: the top frame clipped {:.2f}%); ",
+                             shorter->count(), 100 * ClippedShare(*top));
+    ab.push_back(std::move(f));
+  }
+  std::sort(ab.begin(), ab.end(), [](const LdrFrame& a, const LdrFrame& b) { return a.exposure < b.exposure; });
+  return ab;
+}
+
 }  // namespace
 
 Result<AdaptiveComparison> CompareAdaptiveBracket(const Config& config,
@@ -119,11 +200,7 @@ Result<AdaptiveComparison> CompareAdaptiveBracket(const Config& config,
   auto world = std::make_shared<SimWorld>();
   RIG_ASSIGN_OR_RETURN(std::unique_ptr<SimCamera> cam, SimCamera::Create(config, world));
   const SimResponse& sr = cam->response();
-  ResponseCurve g;
-  for (int c = 0; c < 3; ++c) {
-    for (int z = 0; z < 256; ++z) g.log_exposure[c].push_back(sr.LogExposure(c, z));
-  }
-  g.id = "truth";
+  const ResponseCurve g = TruthResponse(sr);
   const auto& k = config.sim.camera;
   const std::vector<Seconds> offered =
       ThirdStopShutterSpeeds(Seconds(k.shutter_min_s), Seconds(k.shutter_max_s));
@@ -131,17 +208,7 @@ Result<AdaptiveComparison> CompareAdaptiveBracket(const Config& config,
                        SnapToShutterSpeeds(WantedExposures(config.bracket), offered));
   std::sort(fixed.begin(), fixed.end());
 
-  AdaptiveBracketOptions ao;
-  ao.x_lo = 0;
-  ao.x_hi = 1e300;
-  for (int c = 0; c < 3; ++c) {  // the window every channel records usefully
-    ao.x_lo = std::max(ao.x_lo, std::exp(sr.LogExposure(c, eo.z_lo)));
-    ao.x_hi = std::min(ao.x_hi, std::exp(sr.LogExposure(c, eo.z_hi)));
-  }
-  ao.overlap_stops = eo.overlap_stops;
-  ao.headroom_stops = eo.headroom_stops;
-  ao.max_exposure = fixed.back();  // never chase darkness the fixed bracket leaves too
-  ao.min_exposure = offered.front();
+  const AdaptiveBracketOptions ao = PlannerOptions(sr, eo, fixed, offered);
 
   MergeOptions mo;
   mo.weighting = MergeWeighting::kNoise;
@@ -158,13 +225,6 @@ Result<AdaptiveComparison> CompareAdaptiveBracket(const Config& config,
     for (const auto& f : b) s += f.exposure.count() + k.download_time_s;
     return s;
   };
-  // Share of pixel-channels clipped in a frame: at level 250 or above (a JPEG's clipped
-  // highlight decodes a few levels below 255).
-  auto clipped = [](const LdrFrame& f) {
-    const cv::Mat flat = f.image.reshape(1);
-    return double(cv::countNonZero(flat >= 250)) / double(flat.total());
-  };
-
   AdaptiveComparison out;
   Scored all_fixed, all_adaptive;
   cv::Mat metering;  // the previous pose's adaptive radiance map
@@ -183,38 +243,9 @@ Result<AdaptiveComparison> CompareAdaptiveBracket(const Config& config,
     RIG_ASSIGN_OR_RETURN(RadianceMap fmap, MergeBracket(fb, g, mo));
     const cv::Mat mask = WellRecorded(fixed, truth, g);
 
-    Bracket ab;
-    if (metering.empty()) {  // the first pose: one metering frame at the bracket's centre
-      RIG_ASSIGN_OR_RETURN(LdrFrame f, shoot(truth, fixed[fixed.size() / 2]));
-      metering = MeteringFrame(f, g);
-      ab.push_back(std::move(f));
-      row.plan = fmt::format("metering {:.4g} s; ", ab.back().exposure.count());
-    }
-    const cv::Mat flat = metering.reshape(1, 1);
-    RIG_ASSIGN_OR_RETURN(AdaptivePlan plan,
-                         PlanAdaptiveBracket(std::span<const float>(flat.ptr<float>(), flat.total()),
-                                             offered, ao));
-    for (const auto& pf : plan.frames) {
-      RIG_ASSIGN_OR_RETURN(LdrFrame f, shoot(truth, pf.exposure));
-      ab.push_back(std::move(f));
-      row.plan += fmt::format("{:.4g} s ({}); ", pf.exposure.count(), pf.reason);
-    }
-    // The top frame clipped more than planned (a brighter pose): one shorter frame at a time.
-    for (int extra = 0; extra < 8; ++extra) {
-      auto top = std::min_element(ab.begin(), ab.end(), [](const LdrFrame& a, const LdrFrame& b) {
-        return a.exposure < b.exposure;
-      });
-      if (clipped(*top) <= eo.reshoot_clipped_fraction) break;
-      auto shorter = std::find_if(offered.rbegin(), offered.rend(), [&](Seconds s) {
-        return s.count() <= top->exposure.count() * std::exp2(-2.0);
-      });
-      if (shorter == offered.rend()) break;
-      RIG_ASSIGN_OR_RETURN(LdrFrame f, shoot(truth, *shorter));
-      row.plan += fmt::format("{:.4g} s (re-shot: the top frame clipped {:.2f}%); ",
-                              shorter->count(), 100 * clipped(*top));
-      ab.push_back(std::move(f));
-    }
-    std::sort(ab.begin(), ab.end(), [](const LdrFrame& a, const LdrFrame& b) { return a.exposure < b.exposure; });
+    RIG_ASSIGN_OR_RETURN(Bracket ab,
+                         AdaptiveBracketFor([&](Seconds t) { return shoot(truth, t); }, g, fixed,
+                                            offered, ao, eo, &metering, &row));
     RIG_ASSIGN_OR_RETURN(RadianceMap amap, MergeBracket(ab, g, mo));
     metering = Metering(amap);
 

@@ -88,12 +88,45 @@ Result<SimScene> SimScene::Create(const SimConfig& sim) {
   return s;
 }
 
+struct SimScene::Surface {
+  Vec3 normal;
+  std::array<double, 3> rgb;
+  SimMaterialId id;
+  double depth;
+};
+
 void SimScene::Build() {
   const uint64_t seed = static_cast<uint64_t>(seed_);
   radiance_scale_ = kRadianceScale;
   cast_shadows_ = kind_ == "full";
   relief_ = kind_ == "full";
+  ChooseLayout(seed);
+  const size_t n = static_cast<size_t>(width_) * height_;
+  normal_.assign(3 * n, 0.f);
+  albedo_.assign(3 * n, 0.f);
+  material_.assign(n, 0);
+  depth_.assign(n, 0.f);
+  for (int j = 0; j < height_; ++j) {
+    const double y = PixelY(j);
+    for (int i = 0; i < width_; ++i) {
+      const double x = PixelX(i);
+      const size_t p = static_cast<size_t>(j) * width_ + i;
+      const Surface surface = SurfaceAt(x, y, seed);
+      const Vec3& nrm = surface.normal;
+      const std::array<double, 3>& rgb = surface.rgb;
+      const SimMaterialId id = surface.id;
+      const double depth = surface.depth;
+      material_[p] = static_cast<uint8_t>(id);
+      depth_[p] = static_cast<float>(depth);
+      for (int c = 0; c < 3; ++c) {
+        normal_[3 * p + c] = static_cast<float>(nrm[c]);
+        albedo_[3 * p + c] = static_cast<float>(rgb[2 - c]);  // BGR
+      }
+    }
+  }
+}
 
+void SimScene::ChooseLayout(uint64_t seed) {
   // A plane facing up and to the right, behind a sphere that floats in front of it.
   plane_dzdx_ = -0.2;
   plane_dzdy_ = -0.3;
@@ -140,79 +173,65 @@ void SimScene::Build() {
     materials_[1] = {"sphere", 0.5, 120};
     materials_[2] = {"relief", 0.25, 40};
   }
+}
 
-  const size_t n = static_cast<size_t>(width_) * height_;
-  normal_.assign(3 * n, 0.f);
-  albedo_.assign(3 * n, 0.f);
-  material_.assign(n, 0);
-  depth_.assign(n, 0.f);
+// The surface seen at (x, y): an extra sphere's, the main sphere's, the relief's or the plane's.
+SimScene::Surface SimScene::SurfaceAt(double x, double y, uint64_t seed) const {
   const double k = 2 * kPi / relief_wavelength_;
-  for (int j = 0; j < height_; ++j) {
-    const double y = PixelY(j);
-    for (int i = 0; i < width_; ++i) {
-      const double x = PixelX(i);
-      const size_t p = static_cast<size_t>(j) * width_ + i;
-      Vec3 nrm;
-      std::array<double, 3> rgb;
-      SimMaterialId id;
-      const double dx = x - sphere_center_[0], dy = y - sphere_center_[1];
-      const double rr = sphere_radius_ * sphere_radius_ - dx * dx - dy * dy;
-      const double noise = ValueNoise(x, y, noise_cell_, seed, 1);
-      const ExtraSphere* extra = nullptr;
-      double err = 0;
-      for (const ExtraSphere& e : extras_) {
-        const double ex = x - e.center[0], ey = y - e.center[1];
-        err = e.radius * e.radius - ex * ex - ey * ey;
-        if (err > 0) {
-          extra = &e;
-          break;
-        }
-      }
-      double depth;
-      if (extra) {
-        id = extra->id;
-        const double r = extra->radius;
-        nrm = {(x - extra->center[0]) / r, (y - extra->center[1]) / r, std::sqrt(err) / r};
-        depth = extra->center[2] + std::sqrt(err);
-        rgb = id == SimMaterialId::kChrome ? std::array<double, 3>{0.005, 0.005, 0.005}
-                                           : std::array<double, 3>{0.6, 0.6, 0.6};
-      } else if (rr > 0) {
-        depth = sphere_center_[2] + std::sqrt(rr);
-        id = SimMaterialId::kSphere;
-        nrm = {dx / sphere_radius_, dy / sphere_radius_, std::sqrt(rr) / sphere_radius_};
-        // Latitude bands on the sphere, with a little noise.
-        double band = std::sin(9.0 * std::asin(std::clamp(nrm[1], -1.0, 1.0)) + 1.0);
-        const auto& c = band > 0 ? sphere_rgb_a_ : sphere_rgb_b_;
-        double m = 0.85 + 0.15 * noise;
-        rgb = {c[0] * m, c[1] * m, c[2] * m};
-      } else if (relief_ && x >= relief_box_[0] && x <= relief_box_[1] && y >= relief_box_[2] &&
-                 y <= relief_box_[3]) {
-        id = SimMaterialId::kRelief;
-        depth = PlaneZ(x, y) + relief_amplitude_ * std::sin(k * x) * std::sin(k * y);
-        // Height field on the plane: z = plane + A sin(kx) sin(ky).
-        double gx = plane_dzdx_ + relief_amplitude_ * k * std::cos(k * x) * std::sin(k * y);
-        double gy = plane_dzdy_ + relief_amplitude_ * k * std::sin(k * x) * std::cos(k * y);
-        nrm = Normalize({-gx, -gy, 1.0});
-        double m = 0.6 + 0.4 * ValueNoise(x, y, noise_cell_ * 0.5, seed, 2);
-        rgb = {relief_rgb_[0] * m, relief_rgb_[1] * m, relief_rgb_[2] * m};
-      } else {
-        id = SimMaterialId::kPlane;
-        depth = PlaneZ(x, y);
-        nrm = plane_normal_;
-        auto cx = static_cast<int64_t>(std::floor(x / checker_size_));
-        auto cy = static_cast<int64_t>(std::floor(y / checker_size_));
-        const auto& c = ((cx + cy) & 1) ? plane_rgb_dark_ : plane_rgb_light_;
-        double m = 0.7 + 0.3 * noise;
-        rgb = {c[0] * m, c[1] * m, c[2] * m};
-      }
-      material_[p] = static_cast<uint8_t>(id);
-      depth_[p] = static_cast<float>(depth);
-      for (int c = 0; c < 3; ++c) {
-        normal_[3 * p + c] = static_cast<float>(nrm[c]);
-        albedo_[3 * p + c] = static_cast<float>(rgb[2 - c]);  // BGR
-      }
+  Vec3 nrm;
+  std::array<double, 3> rgb;
+  SimMaterialId id;
+  const double dx = x - sphere_center_[0], dy = y - sphere_center_[1];
+  const double rr = sphere_radius_ * sphere_radius_ - dx * dx - dy * dy;
+  const double noise = ValueNoise(x, y, noise_cell_, seed, 1);
+  const ExtraSphere* extra = nullptr;
+  double err = 0;
+  for (const ExtraSphere& e : extras_) {
+    const double ex = x - e.center[0], ey = y - e.center[1];
+    err = e.radius * e.radius - ex * ex - ey * ey;
+    if (err > 0) {
+      extra = &e;
+      break;
     }
   }
+  double depth;
+  if (extra) {
+    id = extra->id;
+    const double r = extra->radius;
+    nrm = {(x - extra->center[0]) / r, (y - extra->center[1]) / r, std::sqrt(err) / r};
+    depth = extra->center[2] + std::sqrt(err);
+    rgb = id == SimMaterialId::kChrome ? std::array<double, 3>{0.005, 0.005, 0.005}
+                                       : std::array<double, 3>{0.6, 0.6, 0.6};
+  } else if (rr > 0) {
+    depth = sphere_center_[2] + std::sqrt(rr);
+    id = SimMaterialId::kSphere;
+    nrm = {dx / sphere_radius_, dy / sphere_radius_, std::sqrt(rr) / sphere_radius_};
+    // Latitude bands on the sphere, with a little noise.
+    double band = std::sin(9.0 * std::asin(std::clamp(nrm[1], -1.0, 1.0)) + 1.0);
+    const auto& c = band > 0 ? sphere_rgb_a_ : sphere_rgb_b_;
+    double m = 0.85 + 0.15 * noise;
+    rgb = {c[0] * m, c[1] * m, c[2] * m};
+  } else if (relief_ && x >= relief_box_[0] && x <= relief_box_[1] && y >= relief_box_[2] &&
+             y <= relief_box_[3]) {
+    id = SimMaterialId::kRelief;
+    depth = PlaneZ(x, y) + relief_amplitude_ * std::sin(k * x) * std::sin(k * y);
+    // Height field on the plane: z = plane + A sin(kx) sin(ky).
+    double gx = plane_dzdx_ + relief_amplitude_ * k * std::cos(k * x) * std::sin(k * y);
+    double gy = plane_dzdy_ + relief_amplitude_ * k * std::sin(k * x) * std::cos(k * y);
+    nrm = Normalize({-gx, -gy, 1.0});
+    double m = 0.6 + 0.4 * ValueNoise(x, y, noise_cell_ * 0.5, seed, 2);
+    rgb = {relief_rgb_[0] * m, relief_rgb_[1] * m, relief_rgb_[2] * m};
+  } else {
+    id = SimMaterialId::kPlane;
+    depth = PlaneZ(x, y);
+    nrm = plane_normal_;
+    auto cx = static_cast<int64_t>(std::floor(x / checker_size_));
+    auto cy = static_cast<int64_t>(std::floor(y / checker_size_));
+    const auto& c = ((cx + cy) & 1) ? plane_rgb_dark_ : plane_rgb_light_;
+    double m = 0.7 + 0.3 * noise;
+    rgb = {c[0] * m, c[1] * m, c[2] * m};
+  }
+  return {nrm, rgb, id, depth};
 }
 
 double SimScene::PlaneZ(double x, double y) const {

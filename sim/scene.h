@@ -126,6 +126,11 @@ class SimScene {
 
   SimScene() = default;
   void Build();
+  // Build's steps: the layout (geometry, colours jittered by the seed, materials, the extra
+  // spheres), then every pixel's surface.
+  void ChooseLayout(uint64_t seed);
+  struct Surface;
+  Surface SurfaceAt(double x, double y, uint64_t seed) const;
   // rho of pixel p = (i, j) for the unit direction l (shadows included), B, G, R.
   void Shade(int i, int j, const Vec3& l, float* out) const;
   bool ShadowedByExtras(int i, int j, const Vec3& l) const;

@@ -10,6 +10,7 @@
 #include "process/export/load_any.h"
 #include "process/io/image_io.h"
 #include "process/model/harmonic/fit.h"
+#include "process/model/lp.h"
 
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
@@ -147,6 +148,17 @@ Result<LightSource> LoadLightSource(const std::string& positional, const std::st
   if (!fs::exists(positional, ec))
     return MakeError(ErrorCode::kNotFound, positional, "no such session or model");
   return FromModel(positional);
+}
+
+Status OverrideDirections(const std::string& lp, LightSource* source) {
+  RIG_ASSIGN_OR_RETURN(auto entries, ReadLp(lp));
+  LightStack& stack = source->stack;
+  if (entries.size() != stack.size()) {
+    return MakeError(ErrorCode::kInvalidInput, lp, "lists {} lights, the capture has {} images",
+                     entries.size(), stack.size());
+  }
+  for (size_t k = 0; k < stack.size(); ++k) stack.directions[k] = entries[k].direction;
+  return Ok();
 }
 
 }  // namespace rig

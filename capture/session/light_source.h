@@ -27,4 +27,8 @@ struct LightSource {
 Result<LightSource> LoadLightSource(const std::string& positional, const std::string& lp,
                                     const std::string& images, int downsample);
 
+// The directions of an .lp (e.g. from rig calibrate-lights) in place of the source's: the same
+// image count and order.
+Status OverrideDirections(const std::string& lp, LightSource* source);
+
 }  // namespace rig

@@ -76,6 +76,99 @@ void MarkParetoFronts(std::vector<MethodResult>* rows) {
   front([](const MethodResult& r) { return r.bytes_per_pixel; }, &MethodResult::pareto_storage);
 }
 
+namespace {
+
+FitInput FitInputOf(const MethodEvalInput& in) {
+  FitInput fit_in;
+  fit_in.radiance = in.radiance;
+  fit_in.lamp_radiance_rgb = in.lamp_radiance_rgb;
+  fit_in.light_frame = in.light_frame;
+  for (size_t i = 0; i < in.radiance.size(); ++i)
+    fit_in.directions.push_back(LightDirection(in.h_deg[i], in.v_deg[i], in.light_frame));
+  fit_in.weights = GridQuadratureWeights(in.h_deg, in.v_deg);
+  return fit_in;
+}
+
+// RMS of the data's ρ: the scale the LOO error is reported against.
+double RhoRms(const MethodEvalInput& in, const cv::Scalar& lamp_bgr) {
+  double sum_sq = 0, count = 0;
+  for (const auto& r : in.radiance) {
+    cv::Mat rho;
+    cv::divide(r, lamp_bgr, rho);
+    sum_sq += cv::norm(rho, cv::NORM_L2SQR);
+    count += static_cast<double>(rho.total() * 3);
+  }
+  return std::sqrt(sum_sq / count);
+}
+
+// Truth: the shadow mask (CV_8U: 1 where the truth is 0 in some channel at some sampled
+// pose) and its complement, the held-out and outside truth maps.
+struct TruthMaps {
+  cv::Mat shadowed, lit;
+  std::vector<cv::Mat> held, outside;
+};
+
+// Fills out's truth_scale and pixel counts.
+TruthMaps TruthMapsOf(const MethodEvalInput& in, const cv::Scalar& lamp_bgr, MethodEvaluation* out) {
+  TruthMaps t;
+  double st = 0, tt = 0;
+  t.shadowed = cv::Mat::zeros(in.radiance[0].size(), CV_8U);
+  for (size_t i = 0; i < in.radiance.size(); ++i) {
+    cv::Mat truth = in.truth_rho(in.h_deg[i], in.v_deg[i]), rho;
+    cv::divide(in.radiance[i], lamp_bgr, rho);
+    st += rho.dot(truth);
+    tt += truth.dot(truth);
+    for (int y = 0; y < truth.rows; ++y)
+      for (int x = 0; x < truth.cols; ++x) {
+        const cv::Vec3f v = truth.at<cv::Vec3f>(y, x);
+        if (v[0] <= 0 || v[1] <= 0 || v[2] <= 0) t.shadowed.at<uint8_t>(y, x) = 1;
+      }
+  }
+  out->truth_scale = tt > 0 ? st / tt : 1;
+  out->shadowed_pixels = static_cast<size_t>(cv::countNonZero(t.shadowed));
+  out->lit_pixels = t.shadowed.total() - out->shadowed_pixels;
+  for (auto [h, v] : in.held_out) t.held.push_back(in.truth_rho(h, v));
+  for (auto [h, v] : in.outside) t.outside.push_back(in.truth_rho(h, v));
+  t.lit = t.shadowed == 0;
+  return t;
+}
+
+std::vector<Candidate> CandidatesUpTo(int max_order) {
+  std::vector<Candidate> candidates;
+  for (FitMethod m : {FitMethod::kQuadrature, FitMethod::kLs, FitMethod::kRls})
+    for (int l = 0; l <= max_order; ++l) candidates.push_back({BasisKind::kSh, m, l});
+  for (FitMethod m : {FitMethod::kLs, FitMethod::kRls})
+    for (int l = 0; l <= max_order; ++l) candidates.push_back({BasisKind::kHsh, m, l});
+  for (FitMethod m : {FitMethod::kLs, FitMethod::kRls})
+    for (int l = 1; l <= 4; ++l) candidates.push_back({BasisKind::kPtm, m, l});
+  return candidates;
+}
+
+// The truth's relative errors of a fitted model: at held-out poses (all, shadowed, lit pixels)
+// and outside the sampled range.
+void CompareWithTruth(const Model& model, const MethodEvalInput& in, const TruthMaps& truth,
+                      double truth_scale, MethodResult* r) {
+  ErrorSum all, sh, li, ex;
+  for (size_t k = 0; k < in.held_out.size(); ++k) {
+    const auto [h, v] = in.held_out[k];
+    cv::Mat rho = model.EvaluateRho(LightDirection(h, v, in.light_frame));
+    all.Add(rho, truth_scale, truth.held[k], cv::Mat());
+    sh.Add(rho, truth_scale, truth.held[k], truth.shadowed);
+    li.Add(rho, truth_scale, truth.held[k], truth.lit);
+  }
+  for (size_t k = 0; k < in.outside.size(); ++k) {
+    const auto [h, v] = in.outside[k];
+    ex.Add(model.EvaluateRho(LightDirection(h, v, in.light_frame)), truth_scale, truth.outside[k],
+           cv::Mat());
+  }
+  r->truth_relative = all.Relative();
+  r->truth_relative_shadowed = sh.Relative();
+  r->truth_relative_lit = li.Relative();
+  r->extrapolation_relative = ex.Relative();
+}
+
+}  // namespace
+
 Result<MethodEvaluation> EvaluateMethods(const MethodEvalInput& in) {
   auto log = Log("evaluate");
   const size_t n = in.radiance.size();
@@ -85,59 +178,12 @@ Result<MethodEvaluation> EvaluateMethods(const MethodEvalInput& in) {
   }
   MethodEvaluation out;
   out.has_truth = static_cast<bool>(in.truth_rho);
-  FitInput fit_in;
-  fit_in.radiance = in.radiance;
-  fit_in.lamp_radiance_rgb = in.lamp_radiance_rgb;
-  fit_in.light_frame = in.light_frame;
-  for (size_t i = 0; i < n; ++i)
-    fit_in.directions.push_back(LightDirection(in.h_deg[i], in.v_deg[i], in.light_frame));
-  fit_in.weights = GridQuadratureWeights(in.h_deg, in.v_deg);
+  const FitInput fit_in = FitInputOf(in);
   const cv::Scalar lamp_bgr(in.lamp_radiance_rgb[2], in.lamp_radiance_rgb[1], in.lamp_radiance_rgb[0]);
+  const double rho_rms = RhoRms(in, lamp_bgr);
+  const TruthMaps truth = out.has_truth ? TruthMapsOf(in, lamp_bgr, &out) : TruthMaps{};
 
-  // RMS of the data's ρ: the scale the LOO error is reported against.
-  double sum_sq = 0, count = 0;
-  for (const auto& r : in.radiance) {
-    cv::Mat rho;
-    cv::divide(r, lamp_bgr, rho);
-    sum_sq += cv::norm(rho, cv::NORM_L2SQR);
-    count += static_cast<double>(rho.total() * 3);
-  }
-  const double rho_rms = std::sqrt(sum_sq / count);
-
-  // Truth: the data's scale, the shadow mask, the held-out and outside truth maps.
-  cv::Mat shadowed;  // CV_8U: 1 where the truth is 0 in some channel at some sampled pose
-  std::vector<cv::Mat> held_truth, outside_truth;
-  if (out.has_truth) {
-    double st = 0, tt = 0;
-    shadowed = cv::Mat::zeros(in.radiance[0].size(), CV_8U);
-    for (size_t i = 0; i < n; ++i) {
-      cv::Mat t = in.truth_rho(in.h_deg[i], in.v_deg[i]), rho;
-      cv::divide(in.radiance[i], lamp_bgr, rho);
-      st += rho.dot(t);
-      tt += t.dot(t);
-      for (int y = 0; y < t.rows; ++y)
-        for (int x = 0; x < t.cols; ++x) {
-          const cv::Vec3f v = t.at<cv::Vec3f>(y, x);
-          if (v[0] <= 0 || v[1] <= 0 || v[2] <= 0) shadowed.at<uint8_t>(y, x) = 1;
-        }
-    }
-    out.truth_scale = tt > 0 ? st / tt : 1;
-    out.shadowed_pixels = static_cast<size_t>(cv::countNonZero(shadowed));
-    out.lit_pixels = shadowed.total() - out.shadowed_pixels;
-    for (auto [h, v] : in.held_out) held_truth.push_back(in.truth_rho(h, v));
-    for (auto [h, v] : in.outside) outside_truth.push_back(in.truth_rho(h, v));
-  }
-  cv::Mat lit;
-  if (!shadowed.empty()) lit = shadowed == 0;
-
-  std::vector<Candidate> candidates;
-  for (FitMethod m : {FitMethod::kQuadrature, FitMethod::kLs, FitMethod::kRls})
-    for (int l = 0; l <= in.max_order; ++l) candidates.push_back({BasisKind::kSh, m, l});
-  for (FitMethod m : {FitMethod::kLs, FitMethod::kRls})
-    for (int l = 0; l <= in.max_order; ++l) candidates.push_back({BasisKind::kHsh, m, l});
-  for (FitMethod m : {FitMethod::kLs, FitMethod::kRls})
-    for (int l = 1; l <= 4; ++l) candidates.push_back({BasisKind::kPtm, m, l});
-
+  const std::vector<Candidate> candidates = CandidatesUpTo(in.max_order);
   const double megapixels = in.radiance[0].total() / 1e6;
   ProgressTask task("evaluating models", static_cast<int64_t>(candidates.size()));
   for (const auto& c : candidates) {
@@ -174,25 +220,7 @@ Result<MethodEvaluation> EvaluateMethods(const MethodEvalInput& in) {
       (void)rho;
     }
     r.render_s_per_mp = Since(t0) / 3 / megapixels;
-    if (out.has_truth) {
-      ErrorSum all, sh, li, ex;
-      for (size_t k = 0; k < in.held_out.size(); ++k) {
-        const auto [h, v] = in.held_out[k];
-        cv::Mat rho = fit->model.EvaluateRho(LightDirection(h, v, in.light_frame));
-        all.Add(rho, out.truth_scale, held_truth[k], cv::Mat());
-        sh.Add(rho, out.truth_scale, held_truth[k], shadowed);
-        li.Add(rho, out.truth_scale, held_truth[k], lit);
-      }
-      for (size_t k = 0; k < in.outside.size(); ++k) {
-        const auto [h, v] = in.outside[k];
-        ex.Add(fit->model.EvaluateRho(LightDirection(h, v, in.light_frame)), out.truth_scale,
-               outside_truth[k], cv::Mat());
-      }
-      r.truth_relative = all.Relative();
-      r.truth_relative_shadowed = sh.Relative();
-      r.truth_relative_lit = li.Relative();
-      r.extrapolation_relative = ex.Relative();
-    }
+    if (out.has_truth) CompareWithTruth(fit->model, in, truth, out.truth_scale, &r);
     log->debug("{} order {}: fit {:.3f} s, LOO {:.4f}, truth {:.4f}", r.Name(), r.order,
                r.fit_time_s, r.loo_relative, r.truth_relative);
     out.rows.push_back(r);

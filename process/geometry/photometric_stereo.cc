@@ -371,4 +371,39 @@ AngularError NormalError(const cv::Mat& normals, const cv::Mat& truth, const cv:
   return r;
 }
 
+Status WriteHeightMap(const cv::Mat& normals, const std::string& exr) {
+  cv::Mat z = IntegrateNormals(normals);
+  ExrImage img;
+  img.width = z.cols;
+  img.height = z.rows;
+  img.channel_names = {"Y"};
+  img.channels = {z};
+  img.attributes = {{"content", "height from normals (Frankot-Chellappa), pixels, mean 0"}};
+  return WriteExr(exr, img);
+}
+
+Result<NearLamp> PlaceLamp(const LampPlacement& placement, const LightFrameConfig* session,
+                           int image_height) {
+  LampPlacement p = placement;
+  if (session && !p.far && p.lamp_distance_mm < 0) {
+    p.lamp_distance_mm = session->lamp_distance_mm;
+    if (p.field_height_mm <= 0) p.field_height_mm = session->field_height_mm;
+    if (std::isnan(p.surface_depth_mm)) p.surface_depth_mm = session->surface_depth_mm;
+  }
+  NearLamp lamp;
+  if (p.lamp_distance_mm <= 0 || p.far) return lamp;
+  if (p.field_height_mm <= 0)
+    return MakeError(ErrorCode::kInvalidInput, "--field-height-mm", "a near lamp needs the field's height");
+  lamp.distance_mm = p.lamp_distance_mm;
+  lamp.mm_per_px = p.field_height_mm / image_height;
+  lamp.plane_z_mm = std::isnan(p.surface_depth_mm) ? 0.0 : p.surface_depth_mm;
+  if (!std::isfinite(lamp.plane_z_mm) ||
+      (lamp.plane_z_mm != 0 && std::abs(lamp.plane_z_mm) + p.field_height_mm >= p.lamp_distance_mm)) {
+    return MakeError(ErrorCode::kInvalidInput, fmt::format("--surface-depth-mm {:g}", lamp.plane_z_mm),
+                     "|surface depth| + the field's height must stay below the lamp's distance "
+                     "({:g} mm)", p.lamp_distance_mm);
+  }
+  return lamp;
+}
+
 }  // namespace rig

@@ -12,11 +12,13 @@
 // RTIViewer's); the 8-bit encoding is RGB = round(255 * (n * 0.5 + 0.5)).
 #pragma once
 
+#include <limits>
 #include <string>
 #include <vector>
 
 #include <opencv2/core.hpp>
 
+#include "config/config.h"
 #include "config/result.h"
 #include "process/geometry/light_stack.h"
 #include "process/model/light_direction.h"
@@ -64,6 +66,22 @@ Result<std::vector<std::string>> WriteNormalsAndAlbedo(const PsResult& ps,
 // The 8-bit pictures alone: normals.png and albedo.png into `folder` (a model's).
 Status WriteNormalPictures(const PsResult& ps, const std::string& normals_png,
                            const std::string& albedo_png);
+
+// Writes the height integrated from `normals` (IntegrateNormals) as a one-channel EXR.
+Status WriteHeightMap(const cv::Mat& normals, const std::string& exr);
+
+// Where the lamp stands for photometric stereo, from the command line's choices and a
+// session's [light_frame] (null: none): `lamp_distance_mm` < 0 takes the session's (with its
+// field height and surface depth where those are not given), 0 or `far` a far lamp. A near
+// lamp needs the field's height, and |surface depth| + field height below the lamp's distance.
+struct LampPlacement {
+  double lamp_distance_mm = -1;
+  double field_height_mm = 0;
+  double surface_depth_mm = std::numeric_limits<double>::quiet_NaN();
+  bool far = false;
+};
+Result<NearLamp> PlaceLamp(const LampPlacement& placement, const LightFrameConfig* session,
+                           int image_height);
 
 // Mean and largest angle (degrees) between two normal maps over a mask (CV_8UC1 != 0).
 struct AngularError {

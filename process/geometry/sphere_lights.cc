@@ -275,93 +275,76 @@ SphereCircle RefineCircle(const cv::Mat& median_grey, const SphereCircle& rough)
   return c;
 }
 
-Result<Highlight> LocateHighlight(const LightStack& stack, size_t k, const SphereCircle& sphere,
-                                  const CameraModel& camera, const HighlightOptions& options) {
-  const std::string& name = stack.names[k];
-  const cv::Mat grey = LinearGrey(stack.linear[k]);
-  const cv::Mat* clip = stack.clipped.empty() ? nullptr : &stack.clipped[k];
-  SphereView view{sphere, camera, static_cast<double>(stack.width),
-                  static_cast<double>(stack.height)};
-  view.Init();
-  const int x0 = std::max(0, static_cast<int>(sphere.cx - sphere.r));
-  const int x1 = std::min(stack.width - 1, static_cast<int>(sphere.cx + sphere.r));
-  const int y0 = std::max(0, static_cast<int>(sphere.cy - sphere.r));
-  const int y1 = std::min(stack.height - 1, static_cast<int>(sphere.cy + sphere.r));
-  const double rin = 0.97 * sphere.r;
-  std::vector<float> vals;
+namespace {
+
+// The pixels inside 97% of the sphere's radius: their mask, grey values and the brightest.
+struct DiscSamples {
+  cv::Mat inside;  // CV_8UC1
+  std::vector<float> values;
   float peak = -1;
   int px = -1, py = -1;
-  cv::Mat inside(stack.height, stack.width, CV_8UC1, cv::Scalar(0));
+};
+
+DiscSamples SampleDisc(const cv::Mat& grey, const SphereCircle& sphere) {
+  DiscSamples d;
+  const int x0 = std::max(0, static_cast<int>(sphere.cx - sphere.r));
+  const int x1 = std::min(grey.cols - 1, static_cast<int>(sphere.cx + sphere.r));
+  const int y0 = std::max(0, static_cast<int>(sphere.cy - sphere.r));
+  const int y1 = std::min(grey.rows - 1, static_cast<int>(sphere.cy + sphere.r));
+  const double rin = 0.97 * sphere.r;
+  d.inside = cv::Mat(grey.rows, grey.cols, CV_8UC1, cv::Scalar(0));
   for (int y = y0; y <= y1; ++y)
     for (int x = x0; x <= x1; ++x) {
       if (std::hypot(x + 0.5 - sphere.cx, y + 0.5 - sphere.cy) > rin) continue;
-      inside.at<uint8_t>(y, x) = 1;
+      d.inside.at<uint8_t>(y, x) = 1;
       const float g = grey.at<float>(y, x);
-      vals.push_back(g);
-      if (g > peak) peak = g, px = x, py = y;
+      d.values.push_back(g);
+      if (g > d.peak) d.peak = g, d.px = x, d.py = y;
     }
-  if (vals.size() < 20)
-    return MakeError(ErrorCode::kInvalidInput, name,
-                     "the sphere at ({:.1f}, {:.1f}) r {:.1f} px is outside the {}x{} image or "
-                     "too small", sphere.cx, sphere.cy, sphere.r, stack.width, stack.height);
-  const double bg = Median(vals);
-  const bool peak_clipped = clip && clip->at<uint8_t>(py, px);
-  std::vector<float> sorted_vals = vals;
-  auto p90 = sorted_vals.begin() + static_cast<long>(0.9 * (sorted_vals.size() - 1));
-  std::nth_element(sorted_vals.begin(), p90, sorted_vals.end());
-  const double q90 = std::max(static_cast<double>(*p90), 1e-12);
-  if (!peak_clipped && peak - bg <= options.min_contrast * std::max(bg, 1e-9))
-    return MakeError(ErrorCode::kInvalidInput, name,
-                     "no highlight on the sphere at ({:.1f}, {:.1f}) r {:.1f} px: its brightest "
-                     "pixel is only {:.1f}x its median (a highlight needs {:.0f}x)", sphere.cx,
-                     sphere.cy, sphere.r, bg > 0 ? peak / bg : 0.0, options.min_contrast + 1);
-  // The half-maximum blob around the peak (8-connected).
-  // A clipped peak: the blob is the clipped area (its half maximum is unknown).
-  const double half = peak_clipped ? peak * 0.999 : bg + 0.5 * (peak - bg);
-  std::vector<cv::Point> stackp = {{px, py}};
-  cv::Mat seen(stack.height, stack.width, CV_8UC1, cv::Scalar(0));
-  seen.at<uint8_t>(py, px) = 1;
+  return d;
+}
+
+// The blob at or above `half` around the peak (8-connected, inside the disc): its size in
+// pixels, and whether any of it is clipped.
+std::pair<int, bool> HalfMaximumBlob(const cv::Mat& grey, const DiscSamples& d, const cv::Mat* clip,
+                                     double half) {
+  std::vector<cv::Point> todo = {{d.px, d.py}};
+  cv::Mat seen(grey.rows, grey.cols, CV_8UC1, cv::Scalar(0));
+  seen.at<uint8_t>(d.py, d.px) = 1;
   int blob = 0;
   bool saturated = false;
-  while (!stackp.empty()) {
-    cv::Point p = stackp.back();
-    stackp.pop_back();
+  while (!todo.empty()) {
+    cv::Point p = todo.back();
+    todo.pop_back();
     ++blob;
     if (clip && clip->at<uint8_t>(p.y, p.x)) saturated = true;
     for (int dy = -1; dy <= 1; ++dy)
       for (int dx = -1; dx <= 1; ++dx) {
         const int x = p.x + dx, y = p.y + dy;
-        if (x < 0 || y < 0 || x >= stack.width || y >= stack.height) continue;
-        if (seen.at<uint8_t>(y, x) || !inside.at<uint8_t>(y, x)) continue;
+        if (x < 0 || y < 0 || x >= grey.cols || y >= grey.rows) continue;
+        if (seen.at<uint8_t>(y, x) || !d.inside.at<uint8_t>(y, x)) continue;
         if (grey.at<float>(y, x) < half) continue;
         seen.at<uint8_t>(y, x) = 1;
-        stackp.push_back({x, y});
+        todo.push_back({x, y});
       }
   }
-  const double disc_area = kPi * sphere.r * sphere.r;
-  if (blob > options.max_blob_fraction * disc_area)
-    return MakeError(ErrorCode::kInvalidInput, name,
-                     "the highlight on the sphere at ({:.1f}, {:.1f}) is {} a blob of {} px, {:.1f}% "
-                     "of the sphere (at most {:.1f}%): not a point lamp's highlight (a matte "
-                     "sphere, an overexposed image or a lamp too large)",
-                     sphere.cx, sphere.cy, saturated ? "saturated over" : "spread over", blob,
-                     100.0 * blob / disc_area, 100 * options.max_blob_fraction);
-  // Weighted mean normal over the lobe. Per pixel the weight is the lobe's value above the
-  // sphere's median, divided by N.L (the lobe is symmetric about the half vector only before
-  // the cosine) and by N.V (pixels to solid angle); cut at 5% of the peak.
-  const double rw = std::max(3.0, 3.0 * std::sqrt(blob / kPi));
-  Vec3 n_peak, v_peak;
-  if (!view.At(px + 0.5, py + 0.5, &n_peak, &v_peak))
-    return MakeError(ErrorCode::kInvalidInput, name, "the highlight lies off the sphere");
-  Vec3 l = Reflect(n_peak, v_peak);
-  Highlight h;
+  return {blob, saturated};
+}
+
+// Weighted mean normal over the lobe, three times from the peak's reflection `l`. Per pixel the
+// weight is the lobe's value above the sphere's median `bg`, divided by N.L (the lobe is
+// symmetric about the half vector only before the cosine) and by N.V (pixels to solid angle);
+// cut at 5% of the peak. Sets h's position and normal; returns the light direction.
+Vec3 LobeDirection(const cv::Mat& grey, const DiscSamples& d, const SphereView& view, double bg,
+                   double rw, Vec3 l, Highlight* h) {
+  const int px = d.px, py = d.py;
   for (int iter = 0; iter < 3; ++iter) {
     struct Px { Vec3 n, v; double g; double u, w; };
     std::vector<Px> pxs;
     double gmax = 0;
-    for (int y = std::max(0, static_cast<int>(py - rw)); y <= std::min(stack.height - 1, static_cast<int>(py + rw)); ++y)
-      for (int x = std::max(0, static_cast<int>(px - rw)); x <= std::min(stack.width - 1, static_cast<int>(px + rw)); ++x) {
-        if (!inside.at<uint8_t>(y, x)) continue;
+    for (int y = std::max(0, static_cast<int>(py - rw)); y <= std::min(grey.rows - 1, static_cast<int>(py + rw)); ++y)
+      for (int x = std::max(0, static_cast<int>(px - rw)); x <= std::min(grey.cols - 1, static_cast<int>(px + rw)); ++x) {
+        if (!d.inside.at<uint8_t>(y, x)) continue;
         if (std::hypot(x - px, y - py) > rw) continue;
         Vec3 n, v;
         if (!view.At(x + 0.5, y + 0.5, &n, &v)) continue;
@@ -384,11 +367,60 @@ Result<Highlight> LocateHighlight(const LightStack& stack, size_t k, const Spher
     if (wsum <= 0) break;
     const Vec3 n = Normalize(sn), v = Normalize(sv);
     l = Reflect(n, v);
-    h.x = su / wsum;
-    h.y = sw / wsum;
-    h.normal = n;
+    h->x = su / wsum;
+    h->y = sw / wsum;
+    h->normal = n;
   }
-  h.direction = l;
+  return l;
+}
+
+}  // namespace
+
+Result<Highlight> LocateHighlight(const LightStack& stack, size_t k, const SphereCircle& sphere,
+                                  const CameraModel& camera, const HighlightOptions& options) {
+  const std::string& name = stack.names[k];
+  const cv::Mat grey = LinearGrey(stack.linear[k]);
+  const cv::Mat* clip = stack.clipped.empty() ? nullptr : &stack.clipped[k];
+  SphereView view{sphere, camera, static_cast<double>(stack.width),
+                  static_cast<double>(stack.height)};
+  view.Init();
+  const DiscSamples disc = SampleDisc(grey, sphere);
+  const std::vector<float>& vals = disc.values;
+  const float peak = disc.peak;
+  const int px = disc.px, py = disc.py;
+  if (vals.size() < 20)
+    return MakeError(ErrorCode::kInvalidInput, name,
+                     "the sphere at ({:.1f}, {:.1f}) r {:.1f} px is outside the {}x{} image or "
+                     "too small", sphere.cx, sphere.cy, sphere.r, stack.width, stack.height);
+  const double bg = Median(vals);
+  const bool peak_clipped = clip && clip->at<uint8_t>(py, px);
+  std::vector<float> sorted_vals = vals;
+  auto p90 = sorted_vals.begin() + static_cast<long>(0.9 * (sorted_vals.size() - 1));
+  std::nth_element(sorted_vals.begin(), p90, sorted_vals.end());
+  const double q90 = std::max(static_cast<double>(*p90), 1e-12);
+  if (!peak_clipped && peak - bg <= options.min_contrast * std::max(bg, 1e-9))
+    return MakeError(ErrorCode::kInvalidInput, name,
+                     "no highlight on the sphere at ({:.1f}, {:.1f}) r {:.1f} px: its brightest "
+                     "pixel is only {:.1f}x its median (a highlight needs {:.0f}x)", sphere.cx,
+                     sphere.cy, sphere.r, bg > 0 ? peak / bg : 0.0, options.min_contrast + 1);
+  // The half-maximum blob around the peak; a clipped peak: the clipped area (its half maximum
+  // is unknown).
+  const double half = peak_clipped ? peak * 0.999 : bg + 0.5 * (peak - bg);
+  const auto [blob, saturated] = HalfMaximumBlob(grey, disc, clip, half);
+  const double disc_area = kPi * sphere.r * sphere.r;
+  if (blob > options.max_blob_fraction * disc_area)
+    return MakeError(ErrorCode::kInvalidInput, name,
+                     "the highlight on the sphere at ({:.1f}, {:.1f}) is {} a blob of {} px, {:.1f}% "
+                     "of the sphere (at most {:.1f}%): not a point lamp's highlight (a matte "
+                     "sphere, an overexposed image or a lamp too large)",
+                     sphere.cx, sphere.cy, saturated ? "saturated over" : "spread over", blob,
+                     100.0 * blob / disc_area, 100 * options.max_blob_fraction);
+  const double rw = std::max(3.0, 3.0 * std::sqrt(blob / kPi));
+  Vec3 n_peak, v_peak;
+  if (!view.At(px + 0.5, py + 0.5, &n_peak, &v_peak))
+    return MakeError(ErrorCode::kInvalidInput, name, "the highlight lies off the sphere");
+  Highlight h;
+  h.direction = LobeDirection(grey, disc, view, bg, rw, Reflect(n_peak, v_peak), &h);
   h.blob_px = blob;
   h.blob_fraction = blob / disc_area;
   h.contrast90 = (peak - bg) / q90;

@@ -58,6 +58,51 @@ int RecordedFrames(std::span<const LdrFrame> frames, const ResponseCurve& g, cv:
   return n;
 }
 
+// "Two random pixels" (the paper), but useful ones: unflagged, flat (both neighbours within
+// 5%), recorded by at least a third of the frames, near two radiance percentiles (75th, 25th).
+Result<std::pair<cv::Point, cv::Point>> ChooseTwoPixels(std::span<const LdrFrame> frames,
+                                                        const ResponseCurve& response,
+                                                        const RadianceMap& map,
+                                                        const RatioCheckOptions& o) {
+  const cv::Rect bounds(0, 0, map.radiance.cols, map.radiance.rows);
+  // within 5%), recorded by at least a third of the frames, near two radiance percentiles.
+  std::mt19937_64 rng(o.seed);
+  struct Cand {
+    cv::Point p;
+    float lum;
+  };
+  std::vector<Cand> cands;
+  const int min_recorded = std::max(2, int(frames.size()) / 3);
+  const int m = o.patch_radius + 1;  // margin: the patch and its flatness probes fit
+  for (int i = 0; i < 4000 && cands.size() < 400; ++i) {
+    cv::Point p(m + int(rng() % uint64_t(std::max(1, bounds.width - 2 * m))),
+                m + int(rng() % uint64_t(std::max(1, bounds.height - 2 * m))));
+    if (!bounds.contains(p)) continue;
+    if (map.flags.at<uint8_t>(p) != kFlagOk) continue;
+    const cv::Vec3f e = map.radiance.at<cv::Vec3f>(p);
+    const float lum = (e[0] + e[1] + e[2]) / 3;
+    if (!(lum > 0)) continue;
+    bool flat = true;
+    const int k = std::max(1, o.patch_radius);
+    for (cv::Point d : {cv::Point(k, 0), cv::Point(0, k), cv::Point(-k, 0), cv::Point(0, -k)}) {
+      if (!bounds.contains(p + d)) {
+        flat = false;
+        break;
+      }
+      const cv::Vec3f n = map.radiance.at<cv::Vec3f>(p + d);
+      flat = flat && std::abs((n[0] + n[1] + n[2]) / 3 - lum) < 0.05f * lum;
+    }
+    if (!flat || RecordedFrames(frames, response, p, o.patch_radius) < min_recorded) continue;
+    cands.push_back({p, lum});
+  }
+  if (cands.size() < 2) {
+    return MakeError(ErrorCode::kInvalidInput, frames[0].source,
+                     "no two flat, well-recorded pixels found; give them with --pixel");
+  }
+  std::sort(cands.begin(), cands.end(), [](const Cand& x, const Cand& y) { return x.lum < y.lum; });
+  return std::pair{cands[cands.size() * 3 / 4].p, cands[cands.size() / 4].p};
+}
+
 }  // namespace
 
 std::string RatioCheckResult::Csv() const {
@@ -92,44 +137,9 @@ Result<RatioCheckResult> CheckPixelRatios(std::span<const LdrFrame> frames,
       }
     }
   } else {
-    // "Two random pixels" (the paper), but useful ones: unflagged, flat (both neighbours
-    // within 5%), recorded by at least a third of the frames, near two radiance percentiles.
-    std::mt19937_64 rng(o.seed);
-    struct Cand {
-      cv::Point p;
-      float lum;
-    };
-    std::vector<Cand> cands;
-    const int min_recorded = std::max(2, int(frames.size()) / 3);
-    const int m = o.patch_radius + 1;  // margin: the patch and its flatness probes fit
-    for (int i = 0; i < 4000 && cands.size() < 400; ++i) {
-      cv::Point p(m + int(rng() % uint64_t(std::max(1, bounds.width - 2 * m))),
-                  m + int(rng() % uint64_t(std::max(1, bounds.height - 2 * m))));
-      if (!bounds.contains(p)) continue;
-      if (map.flags.at<uint8_t>(p) != kFlagOk) continue;
-      const cv::Vec3f e = map.radiance.at<cv::Vec3f>(p);
-      const float lum = (e[0] + e[1] + e[2]) / 3;
-      if (!(lum > 0)) continue;
-      bool flat = true;
-      const int k = std::max(1, o.patch_radius);
-      for (cv::Point d : {cv::Point(k, 0), cv::Point(0, k), cv::Point(-k, 0), cv::Point(0, -k)}) {
-        if (!bounds.contains(p + d)) {
-          flat = false;
-          break;
-        }
-        const cv::Vec3f n = map.radiance.at<cv::Vec3f>(p + d);
-        flat = flat && std::abs((n[0] + n[1] + n[2]) / 3 - lum) < 0.05f * lum;
-      }
-      if (!flat || RecordedFrames(frames, response, p, o.patch_radius) < min_recorded) continue;
-      cands.push_back({p, lum});
-    }
-    if (cands.size() < 2) {
-      return MakeError(ErrorCode::kInvalidInput, frames[0].source,
-                       "no two flat, well-recorded pixels found; give them with --pixel");
-    }
-    std::sort(cands.begin(), cands.end(), [](const Cand& x, const Cand& y) { return x.lum < y.lum; });
-    r.a = cands[cands.size() * 3 / 4].p;
-    r.b = cands[cands.size() / 4].p;
+    RIG_ASSIGN_OR_RETURN(auto pair, ChooseTwoPixels(frames, response, map, o));
+    r.a = pair.first;
+    r.b = pair.second;
   }
   auto patch_mean = [&](cv::Point p) {
     const cv::Rect patch = cv::Rect(p.x - o.patch_radius, p.y - o.patch_radius, 2 * o.patch_radius + 1,

@@ -6,8 +6,6 @@
 #include <fmt/format.h>
 
 #include "process/geometry/photometric_stereo.h"
-#include "process/io/exr_io.h"
-#include "process/model/harmonic/loo.h"
 #include "rig/commands/command.h"
 #include "capture/session/light_source.h"
 
@@ -56,42 +54,18 @@ int RunNormals(int argc, char** argv) {
     }
   auto src = LoadLightSource(source, lp, "", 1);
   if (!src.ok()) return ReportError("normals", src.error());
-  LightStack& stack = src->stack;
   if (!lights.empty()) {
-    auto entries = ReadLp(lights);
-    if (!entries.ok()) return ReportError("normals", entries.error());
-    if (entries->size() != stack.size()) {
-      std::fprintf(stderr, "rig normals: %s lists %zu lights, the capture has %zu images\n",
-                   lights.c_str(), entries->size(), stack.size());
-      return 2;
-    }
-    for (size_t k = 0; k < stack.size(); ++k) stack.directions[k] = (*entries)[k].direction;
+    if (Status st = OverrideDirections(lights, &*src); !st.ok()) return ReportError("normals", st.error());
   }
+  const LightStack& stack = src->stack;
   PsOptions o;
   o.robust = !plain;
   o.threads = threads;
-  if (src->session_config && !far && lamp_mm < 0) {
-    const auto& f = src->session_config->light_frame;
-    lamp_mm = f.lamp_distance_mm;
-    if (field_mm <= 0) field_mm = f.field_height_mm;
-    if (std::isnan(surface_mm)) surface_mm = f.surface_depth_mm;
-  }
-  if (lamp_mm > 0 && !far) {
-    if (field_mm <= 0) {
-      std::fprintf(stderr, "rig normals: a near lamp needs --field-height-mm\n");
-      return 2;
-    }
-    o.lamp.distance_mm = lamp_mm;
-    o.lamp.mm_per_px = field_mm / stack.height;
-    o.lamp.plane_z_mm = std::isnan(surface_mm) ? 0.0 : surface_mm;
-    if (!std::isfinite(o.lamp.plane_z_mm) ||
-        (o.lamp.plane_z_mm != 0 && std::abs(o.lamp.plane_z_mm) + field_mm >= lamp_mm)) {
-      std::fprintf(stderr, "rig normals: --surface-depth-mm %g: |surface depth| + the field's "
-                           "height must stay below the lamp's distance (%g mm)\n",
-                   o.lamp.plane_z_mm, lamp_mm);
-      return 2;
-    }
-  }
+  const LampPlacement placement{lamp_mm, field_mm, surface_mm, far};
+  auto lamp = PlaceLamp(placement, src->session_config ? &src->session_config->light_frame : nullptr,
+                        stack.height);
+  if (!lamp.ok()) return ReportError("normals", lamp.error());
+  o.lamp = *lamp;
   auto ps = PhotometricStereo(stack, stack.directions, o);
   if (!ps.ok()) return ReportError("normals", ps.error());
   const double solved = cv::countNonZero(ps->valid) / static_cast<double>(stack.width * stack.height);
@@ -111,14 +85,7 @@ int RunNormals(int argc, char** argv) {
     std::printf("wrote %s\nwrote %s\n", n.c_str(), a.c_str());
   }
   if (!height.empty()) {
-    cv::Mat z = IntegrateNormals(ps->normals);
-    ExrImage img;
-    img.width = z.cols;
-    img.height = z.rows;
-    img.channel_names = {"Y"};
-    img.channels = {z};
-    img.attributes = {{"content", "height from normals (Frankot-Chellappa), pixels, mean 0"}};
-    if (auto st = WriteExr(height, img); !st.ok()) return ReportError("normals", st.error());
+    if (auto st = WriteHeightMap(ps->normals, height); !st.ok()) return ReportError("normals", st.error());
     std::printf("wrote %s\n", height.c_str());
   }
   return 0;

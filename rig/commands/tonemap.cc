@@ -1,46 +1,61 @@
 // rig tonemap IN.(exr|hdr) --out OUT.png: tone-maps any HDR file for a screen (Ward's
 // histogram adjustment by default; linear and OpenCV's operators for comparison).
-#include <cctype>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <limits>
 #include <string>
 #include <vector>
 
 #include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "config/config.h"
 #include "process/render/radiance_file.h"
 #include "process/io/exr_io.h"
 #include "process/render/tonemap.h"
+#include "process/render/tonemap_compare.h"
 #include "rig/commands/command.h"
 
 namespace rig {
 namespace {
 
-// Reads a radiance map: OpenEXR through exr_io, Radiance RGBE (.hdr/.pic) through OpenCV.
-// One method's picture, resized to `width` (0: as is), with its name written in a corner.
-cv::Mat Panel(const cv::Mat& picture, int width, const std::string& label) {
-  cv::Mat panel = picture;
-  if (width > 0 && width < picture.cols) {
-    const int height = static_cast<int>(std::lround(1.0 * picture.rows * width / picture.cols));
-    cv::resize(picture, panel, cv::Size(width, height), 0, 0, cv::INTER_AREA);
-  } else {
-    panel = picture.clone();
+struct TonemapArgs {
+  std::string in, out, method_name = "ward", config_path, log_level, ward_variant = "pcond";
+  double fov_deg = 0, focal_mm = 0, sensor_mm = 0, display_min = 0, display_max = 0;
+  double exposure_scale = 0, gamma = 2.2;
+  bool srgb = false, compare = false;
+  int width = 0;
+};
+
+// The tone mapping the arguments ask for: a configuration's field of view and display, then
+// the lens, then the options themselves.
+Result<ToneMapOptions> OptionsFromArgs(const TonemapArgs& a) {
+  ToneMapOptions options;
+  if (!a.config_path.empty()) {
+    RIG_ASSIGN_OR_RETURN(Config config, LoadConfigOrError(a.config_path));
+    options.field_of_view_deg = config.process.field_of_view_deg;
+    options.display_min_cd_m2 = config.process.display_min_cd_m2;
+    options.display_max_cd_m2 = config.process.display_max_cd_m2;
   }
-  if (!label.empty()) {
-    const double scale = std::max(0.4, panel.cols / 500.0);
-    int baseline = 0;
-    const cv::Size text = cv::getTextSize(label, cv::FONT_HERSHEY_SIMPLEX, scale, 1, &baseline);
-    cv::rectangle(panel, cv::Rect(0, 0, text.width + 8, text.height + baseline + 8),
-                  cv::Scalar::all(0), cv::FILLED);
-    cv::putText(panel, label, cv::Point(4, text.height + 4), cv::FONT_HERSHEY_SIMPLEX, scale,
-                cv::Scalar::all(255), 1, cv::LINE_AA);
+  if ((a.focal_mm > 0) != (a.sensor_mm > 0)) {
+    return MakeError(ErrorCode::kInvalidInput, "", "--focal-length-mm and --sensor-width-mm go together");
   }
-  return panel;
+  if (a.focal_mm > 0) options.field_of_view_deg = FieldOfViewDeg(a.focal_mm, a.sensor_mm);
+  if (a.fov_deg > 0) options.field_of_view_deg = a.fov_deg;
+  if (a.display_min > 0) options.display_min_cd_m2 = a.display_min;
+  if (a.display_max > 0) options.display_max_cd_m2 = a.display_max;
+  options.gamma = a.gamma;
+  options.srgb = a.srgb;
+  RIG_ASSIGN_OR_RETURN(options.method, ParseToneMapMethod(a.method_name));
+  auto variant = ParseWardVariant(a.ward_variant);
+  if (!variant.ok()) return variant.error().Within("--ward-variant");
+  options.ward_variant = *variant;
+  if (a.exposure_scale > 0) {
+    if (options.method != ToneMapMethod::kLinear || a.compare) {
+      return MakeError(ErrorCode::kInvalidInput, "", "--exposure-scale applies to --method linear only");
+    }
+    options.linear_scale = a.exposure_scale;
+  }
+  return options;
 }
 
 }  // namespace
@@ -48,117 +63,54 @@ cv::Mat Panel(const cv::Mat& picture, int width, const std::string& label) {
 int RunTonemap(int argc, char** argv) {
   CLI::App app{"Tone-map an HDR image (OpenEXR or Radiance .hdr) to an 8-bit picture.",
                "rig tonemap"};
-  std::string in, out, method_name = "ward", config_path, log_level, ward_variant = "pcond";
-  double fov_deg = 0, focal_mm = 0, sensor_mm = 0, display_min = 0, display_max = 0;
-  double exposure_scale = 0, gamma = 2.2;
-  bool srgb = false, compare = false;
-  int width = 0;
-  app.add_option("IN", in, "HDR image: .exr (R, G, B channels) or Radiance .hdr/.pic")
+  TonemapArgs a;
+  app.add_option("IN", a.in, "HDR image: .exr (R, G, B channels) or Radiance .hdr/.pic")
       ->required();
-  app.add_option("--out", out, "output picture (.png, .jpg, ...)")->required();
-  app.add_option("--method", method_name, "ward (default), linear, reinhard, drago or mantiuk");
-  app.add_option("--ward-variant", ward_variant,
+  app.add_option("--out", a.out, "output picture (.png, .jpg, ...)")->required();
+  app.add_option("--method", a.method_name, "ward (default), linear, reinhard, drago or mantiuk");
+  app.add_option("--ward-variant", a.ward_variant,
                  "ward: pcond (default: as Radiance's pcond computes it, 16 random pixels per "
                  "foveal sample) or paper (the 1997 paper's 1-degree samples only)");
-  app.add_option("--fov-deg", fov_deg,
+  app.add_option("--fov-deg", a.fov_deg,
                  "field of view in degrees, for Ward's 1-degree samples: of the larger side "
                  "(pcond), of the width (paper) "
                  "(default: from --config, else from lens and sensor, else 40)");
-  app.add_option("--focal-length-mm", focal_mm, "lens focal length (with --sensor-width-mm)");
-  app.add_option("--sensor-width-mm", sensor_mm, "sensor width (with --focal-length-mm)");
-  app.add_option("--config", config_path,
+  app.add_option("--focal-length-mm", a.focal_mm, "lens focal length (with --sensor-width-mm)");
+  app.add_option("--sensor-width-mm", a.sensor_mm, "sensor width (with --focal-length-mm)");
+  app.add_option("--config", a.config_path,
                  "configuration file: process.field_of_view_deg and display range from it");
-  app.add_option("--display-min", display_min, "display's darkest luminance, cd/m² (default 1)");
-  app.add_option("--display-max", display_max, "display's brightest luminance, cd/m² (default 100)");
-  app.add_option("--exposure-scale", exposure_scale,
+  app.add_option("--display-min", a.display_min, "display's darkest luminance, cd/m² (default 1)");
+  app.add_option("--display-max", a.display_max, "display's brightest luminance, cd/m² (default 100)");
+  app.add_option("--exposure-scale", a.exposure_scale,
                  "linear method only: pixel = radiance × this (default: 99th percentile → white)");
-  app.add_option("--gamma", gamma, "display gamma (default 2.2)");
-  app.add_flag("--srgb", srgb, "encode with the sRGB curve instead of a pure gamma");
-  app.add_flag("--compare", compare,
+  app.add_option("--gamma", a.gamma, "display gamma (default 2.2)");
+  app.add_flag("--srgb", a.srgb, "encode with the sRGB curve instead of a pure gamma");
+  app.add_flag("--compare", a.compare,
                "write every method side by side, labelled (the --method is ignored)");
-  app.add_option("--width", width, "resize each picture to this width in pixels (0: as is)");
-  AddLogLevelOption(app, &log_level);
+  app.add_option("--width", a.width, "resize each picture to this width in pixels (0: as is)");
+  AddLogLevelOption(app, &a.log_level);
   if (auto rc = ParseCommandLine(app, argc, argv)) return *rc;
-  if (auto rc = ApplyLogLevel(log_level)) return *rc;
+  if (auto rc = ApplyLogLevel(a.log_level)) return *rc;
 
-  ToneMapOptions options;
-  if (!config_path.empty()) {
-    auto config = LoadConfigOrError(config_path);
-    if (!config.ok()) return ReportError("tonemap", config.error());
-    options.field_of_view_deg = config->process.field_of_view_deg;
-    options.display_min_cd_m2 = config->process.display_min_cd_m2;
-    options.display_max_cd_m2 = config->process.display_max_cd_m2;
-  }
-  if ((focal_mm > 0) != (sensor_mm > 0)) {
-    return ReportError("tonemap", MakeError(ErrorCode::kInvalidInput, "",
-                                            "--focal-length-mm and --sensor-width-mm go together"));
-  }
-  if (focal_mm > 0) options.field_of_view_deg = FieldOfViewDeg(focal_mm, sensor_mm);
-  if (fov_deg > 0) options.field_of_view_deg = fov_deg;
-  if (display_min > 0) options.display_min_cd_m2 = display_min;
-  if (display_max > 0) options.display_max_cd_m2 = display_max;
-  options.gamma = gamma;
-  options.srgb = srgb;
-  auto method = ParseToneMapMethod(method_name);
-  if (!method.ok()) return ReportError("tonemap", method.error());
-  options.method = *method;
-  auto variant = ParseWardVariant(ward_variant);
-  if (!variant.ok()) return ReportError("tonemap", variant.error().Within("--ward-variant"));
-  options.ward_variant = *variant;
-  if (exposure_scale > 0) {
-    if (options.method != ToneMapMethod::kLinear || compare) {
-      return ReportError("tonemap", MakeError(ErrorCode::kInvalidInput, "",
-                                              "--exposure-scale applies to --method linear only"));
-    }
-    options.linear_scale = exposure_scale;
-  }
-
-  auto radiance = ReadRadianceFile(in);
+  auto options = OptionsFromArgs(a);
+  if (!options.ok()) return ReportError("tonemap", options.error());
+  auto radiance = ReadRadianceFile(a.in);
   if (!radiance.ok()) return ReportError("tonemap", radiance.error());
-
-  std::vector<ToneMapMethod> methods = {options.method};
-  if (compare) {
-    methods = {ToneMapMethod::kWard, ToneMapMethod::kLinear, ToneMapMethod::kReinhard,
-               ToneMapMethod::kDrago, ToneMapMethod::kMantiuk};
-  }
-  std::vector<cv::Mat> panels;
-  for (ToneMapMethod m : methods) {
-    ToneMapOptions o = options;
-    o.method = m;
-    ToneMapReport report;
-    const auto start = std::chrono::steady_clock::now();
-    auto picture = ToneMap(*radiance, o, &report);
-    const double ms =
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-    if (!picture.ok()) return ReportError("tonemap", picture.error().Within(in));
-    std::printf("%s: %s %dx%d in %.1f ms: ", in.c_str(), ToneMapMethodName(m), radiance->cols,
-                radiance->rows, ms);
-    if (m == ToneMapMethod::kWard) {
-      std::printf("fov %.1f deg, foveal %dx%d, scene ln range %.2f (display %.2f), %s, ",
-                  o.field_of_view_deg, report.foveal_width, report.foveal_height,
-                  report.scene_log_range, std::log(o.display_max_cd_m2 / o.display_min_cd_m2),
-                  report.linear_fallback
-                      ? "linear mapping"
-                      : fmt::format("{} trimming passes", report.trim_iterations).c_str());
-    } else if (m == ToneMapMethod::kLinear) {
-      std::printf("scale %.4g, ", report.linear_scale);
-    }
-    std::printf("black %.2f%%, white %.2f%%\n", 100 * report.clipped_low_fraction,
-                100 * report.clipped_high_fraction);
-    panels.push_back(Panel(*picture, width, compare ? ToneMapMethodName(m) : ""));
-  }
-  cv::Mat result;
-  if (panels.size() == 1) {
-    result = panels[0];
-  } else {
-    cv::hconcat(panels, result);
+  const std::vector<ToneMapMethod> methods =
+      a.compare ? ComparedToneMapMethods() : std::vector<ToneMapMethod>{options->method};
+  std::vector<ToneMapPanel> panels;
+  auto result = ToneMapSideBySide(*radiance, *options, methods, a.width, a.compare, &panels);
+  if (!result.ok()) return ReportError("tonemap", result.error().Within(a.in));
+  for (const ToneMapPanel& p : panels) {
+    std::printf("%s: %s %dx%d in %.1f ms: %s\n", a.in.c_str(), ToneMapMethodName(p.options.method),
+                radiance->cols, radiance->rows, p.ms, DescribeToneMapPanel(p).c_str());
   }
   try {
-    if (!cv::imwrite(out, result, {cv::IMWRITE_PNG_COMPRESSION, 9})) {
-      return ReportError("tonemap", MakeError(ErrorCode::kIo, out, "cannot write the picture"));
+    if (!cv::imwrite(a.out, *result, {cv::IMWRITE_PNG_COMPRESSION, 9})) {
+      return ReportError("tonemap", MakeError(ErrorCode::kIo, a.out, "cannot write the picture"));
     }
   } catch (const cv::Exception& e) {
-    return ReportError("tonemap", MakeError(ErrorCode::kIo, out, "cannot write: {}", e.what()));
+    return ReportError("tonemap", MakeError(ErrorCode::kIo, a.out, "cannot write: {}", e.what()));
   }
   return 0;
 }

@@ -236,5 +236,35 @@ TEST(PhotometricStereo, HeightFromNormalsRecoversAPeriodicRelief) {
   EXPECT_LT(err, 0.1 * amp);
 }
 
+TEST(PhotometricStereo, PlaceLampTakesTheSessionsFrameUnlessTold) {
+  LightFrameConfig frame;
+  frame.lamp_distance_mm = 500;
+  frame.field_height_mm = 100;
+  frame.surface_depth_mm = -50;
+  auto from_session = PlaceLamp({}, &frame, 200);
+  ASSERT_TRUE(from_session.ok()) << from_session.error().ToString();
+  EXPECT_TRUE(from_session->near());
+  EXPECT_DOUBLE_EQ(from_session->distance_mm, 500);
+  EXPECT_DOUBLE_EQ(from_session->mm_per_px, 0.5);
+  EXPECT_DOUBLE_EQ(from_session->plane_z_mm, -50);
+  LampPlacement far;
+  far.far = true;
+  auto told_far = PlaceLamp(far, &frame, 200);
+  ASSERT_TRUE(told_far.ok());
+  EXPECT_FALSE(told_far->near());
+  auto none = PlaceLamp({}, nullptr, 200);
+  ASSERT_TRUE(none.ok());
+  EXPECT_FALSE(none->near());
+  LampPlacement no_field;
+  no_field.lamp_distance_mm = 400;
+  auto refused = PlaceLamp(no_field, nullptr, 200);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.error().ToString().find("--field-height-mm"), std::string::npos);
+  LampPlacement too_deep{400, 100, -350, false};
+  auto deep = PlaceLamp(too_deep, nullptr, 200);
+  ASSERT_FALSE(deep.ok());
+  EXPECT_NE(deep.error().ToString().find("--surface-depth-mm"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace rig

@@ -11,6 +11,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "process/io/exr_io.h"
+#include "process/render/tonemap_compare.h"
 
 namespace rig {
 namespace {
@@ -426,6 +427,29 @@ TEST_P(RealHdr, WardShowsBrightAndDarkWithFewClippedPixels) {
 }
 
 INSTANTIATE_TEST_SUITE_P(SharedData, RealHdr, ::testing::Values("mpi_atrium_3.hdr", "Desk.exr"));
+
+TEST(ToneMapCompare, EveryMethodSideBySideAtTheGivenWidthWithItsReport) {
+  cv::Mat radiance(60, 80, CV_32FC3);
+  for (int y = 0; y < radiance.rows; ++y)
+    for (int x = 0; x < radiance.cols; ++x)
+      radiance.at<cv::Vec3f>(y, x) = cv::Vec3f::all(static_cast<float>(std::exp(0.1 * x - 2)));
+  ToneMapOptions o;
+  std::vector<ToneMapPanel> panels;
+  auto all = ToneMapSideBySide(radiance, o, ComparedToneMapMethods(), 40, true, &panels);
+  ASSERT_TRUE(all.ok()) << all.error().ToString();
+  ASSERT_EQ(panels.size(), 5u);
+  EXPECT_EQ(all->cols, 5 * 40);
+  EXPECT_EQ(all->rows, 30);
+  EXPECT_EQ(panels[0].options.method, ToneMapMethod::kWard);
+  EXPECT_NE(DescribeToneMapPanel(panels[0]).find("foveal"), std::string::npos);
+  EXPECT_NE(DescribeToneMapPanel(panels[1]).find("scale"), std::string::npos);
+  // One method, unlabelled, as is: the same picture ToneMap gives.
+  o.method = ToneMapMethod::kWard;
+  auto one = ToneMapSideBySide(radiance, o, {ToneMapMethod::kWard}, 0, false, nullptr);
+  auto direct = ToneMap(radiance, o);
+  ASSERT_TRUE(one.ok() && direct.ok());
+  EXPECT_EQ(cv::norm(*one, *direct, cv::NORM_INF), 0);
+}
 
 }  // namespace
 }  // namespace rig

@@ -410,12 +410,11 @@ float GetFloatLe(const uint8_t* p) {
   return v;
 }
 
-}  // namespace
-
-Result<NeuralModel> FitNeural(const LightSamples& samples, const NeuralOptions& options) {
+// The samples and options a fit can use; the problem named otherwise.
+Status CheckNeuralInput(const LightSamples& samples, const NeuralOptions& options,
+                        const std::string& ctx) {
   const size_t pixels = samples.pixels();
   const int lights = samples.lights();
-  const std::string ctx = "neural fit";
   if (pixels == 0 || lights < 1)
     return MakeError(ErrorCode::kInvalidInput, ctx, "no pixels or no lights");
   if (samples.values.size() != pixels * static_cast<size_t>(lights) * 3 ||
@@ -432,20 +431,17 @@ Result<NeuralModel> FitNeural(const LightSamples& samples, const NeuralOptions& 
     return MakeError(ErrorCode::kInvalidInput, ctx,
                      "bad options (latent 1..64, hidden, layers, batch, threads >= 1, "
                      "epochs >= 0, learning rate > 0, jpeg quality 1..100)");
-  const int k = options.latent;
+  return Ok();
+}
+
+// The training pixels (a seeded subset of train_pixels, in memory order), their encoder
+// inputs and usable-sample counts, and the lights' (x, y).
+TrainData MakeTrainData(const LightSamples& samples, const NeuralOptions& options, uint64_t* rng_state) {
+  const size_t pixels = samples.pixels();
+  const int lights = samples.lights();
   const int in = 3 * lights;
-  const int enc_hidden = options.encoder_hidden > 0 ? options.encoder_hidden : in;
-  uint64_t rng = options.seed;
-
-  std::vector<int> enc_dims{in}, dec_dims{k + 2};
-  for (int i = 0; i < options.encoder_layers; ++i) enc_dims.push_back(enc_hidden);
-  enc_dims.push_back(k);
-  for (int i = 0; i < options.decoder_layers; ++i) dec_dims.push_back(options.hidden);
-  dec_dims.push_back(3);
-  Net net;
-  net.enc = MakeStack(enc_dims, &rng);
-  net.dec = MakeStack(dec_dims, &rng);
-
+  const int k = options.latent;
+  uint64_t& rng = *rng_state;
   TrainData data;
   data.samples = &samples;
   data.lights = lights;
@@ -475,25 +471,71 @@ Result<NeuralModel> FitNeural(const LightSamples& samples, const NeuralOptions& 
     data.light_xy(0, l) = static_cast<float>(samples.directions[l][0]);
     data.light_xy(1, l) = static_cast<float>(samples.directions[l][1]);
   }
+  return data;
+}
 
+// Every pixel's code, in fixed thread shares.
+MatF EncodeAll(const Stack& enc, int k, const LightSamples& samples, int threads) {
+  const size_t pixels = samples.pixels();
+  MatF z(k, static_cast<Eigen::Index>(pixels));
+  {
+    const int shares = static_cast<int>(std::min<size_t>(static_cast<size_t>(threads), pixels));
+    std::vector<std::thread> pool;
+    for (int t = 1; t < shares; ++t) {
+      pool.emplace_back([&, t] {
+        EncodeRange(enc, samples, pixels * t / shares, pixels * (t + 1) / shares, &z);
+      });
+    }
+    EncodeRange(enc, samples, 0, pixels / shares, &z);
+    for (std::thread& th : pool) th.join();
+  }
+  return z;
+}
+
+// A code image as stored: PNG, or JPEG at the options' quality.
+Result<std::vector<uint8_t>> EncodeCodeImage(const cv::Mat& img, const NeuralOptions& options,
+                                             const std::string& ctx) {
+  std::vector<uint8_t> bytes;
+  try {
+    const bool png = options.code_format == NeuralCodeFormat::kPng;
+    std::vector<int> params = png ? std::vector<int>{cv::IMWRITE_PNG_COMPRESSION, 9}
+                                  : std::vector<int>{cv::IMWRITE_JPEG_QUALITY, options.jpeg_quality};
+    if (!cv::imencode(png ? ".png" : ".jpg", img, bytes, params))
+      return MakeError(ErrorCode::kInternal, ctx, "cannot encode the code image");
+  } catch (const cv::Exception& e) {
+    return MakeError(ErrorCode::kInternal, ctx, "OpenCV: {}", e.what());
+  }
+  return bytes;
+}
+
+}  // namespace
+
+Result<NeuralModel> FitNeural(const LightSamples& samples, const NeuralOptions& options) {
+  const size_t pixels = samples.pixels();
+  const int lights = samples.lights();
+  const std::string ctx = "neural fit";
+  RIG_TRY(CheckNeuralInput(samples, options, ctx));
+  const int k = options.latent;
+  const int in = 3 * lights;
+  const int enc_hidden = options.encoder_hidden > 0 ? options.encoder_hidden : in;
+  uint64_t rng = options.seed;
+
+  std::vector<int> enc_dims{in}, dec_dims{k + 2};
+  for (int i = 0; i < options.encoder_layers; ++i) enc_dims.push_back(enc_hidden);
+  enc_dims.push_back(k);
+  for (int i = 0; i < options.decoder_layers; ++i) dec_dims.push_back(options.hidden);
+  dec_dims.push_back(3);
+  Net net;
+  net.enc = MakeStack(enc_dims, &rng);
+  net.dec = MakeStack(dec_dims, &rng);
+
+  TrainData data = MakeTrainData(samples, options, &rng);
+  const size_t n_train = data.pixel.size();
   const double lr0 = options.learning_rate, lr1 = options.learning_rate * options.final_lr_ratio;
   Train(&net, data, options.epochs, options.batch_pixels, options.lights_per_step, lr0, lr1,
         options.threads, &rng);
 
-  // Every pixel's code, in fixed thread shares.
-  MatF z(k, static_cast<Eigen::Index>(pixels));
-  {
-    const int shares = static_cast<int>(std::min<size_t>(static_cast<size_t>(options.threads), pixels));
-    std::vector<std::thread> pool;
-    for (int t = 1; t < shares; ++t) {
-      pool.emplace_back([&, t] {
-        EncodeRange(net.enc, samples, pixels * t / shares, pixels * (t + 1) / shares, &z);
-      });
-    }
-    EncodeRange(net.enc, samples, 0, pixels / shares, &z);
-    for (std::thread& th : pool) th.join();
-  }
-
+  const MatF z = EncodeAll(net.enc, k, samples, options.threads);
   NeuralModel model;
   model.width_ = samples.width;
   model.height_ = samples.height;
@@ -522,21 +564,12 @@ Result<NeuralModel> FitNeural(const LightSamples& samples, const NeuralOptions& 
       uint8_t* px = img.data + p * static_cast<size_t>(ch);
       for (size_t c = 0; c < planes[i].size(); ++c) px[c] = model.codes_[p * k + planes[i][c]];
     }
-    std::vector<uint8_t> bytes;
-    try {
-      const bool png = options.code_format == NeuralCodeFormat::kPng;
-      std::vector<int> params = png ? std::vector<int>{cv::IMWRITE_PNG_COMPRESSION, 9}
-                                    : std::vector<int>{cv::IMWRITE_JPEG_QUALITY, options.jpeg_quality};
-      if (!cv::imencode(png ? ".png" : ".jpg", img, bytes, params))
-        return MakeError(ErrorCode::kInternal, ctx, "cannot encode the code image");
-      if (!png) {
-        cv::Mat back = cv::imdecode(bytes, cv::IMREAD_UNCHANGED);
-        if (back.empty() || back.type() != CV_8UC1 || back.total() != pixels)
-          return MakeError(ErrorCode::kInternal, ctx, "JPEG code image does not decode");
-        for (size_t p = 0; p < pixels; ++p) model.codes_[p * k + planes[i][0]] = back.data[p];
-      }
-    } catch (const cv::Exception& e) {
-      return MakeError(ErrorCode::kInternal, ctx, "OpenCV: {}", e.what());
+    RIG_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, EncodeCodeImage(img, options, ctx));
+    if (options.code_format != NeuralCodeFormat::kPng) {
+      cv::Mat back = cv::imdecode(bytes, cv::IMREAD_UNCHANGED);
+      if (back.empty() || back.type() != CV_8UC1 || back.total() != pixels)
+        return MakeError(ErrorCode::kInternal, ctx, "JPEG code image does not decode");
+      for (size_t p = 0; p < pixels; ++p) model.codes_[p * k + planes[i][0]] = back.data[p];
     }
     model.code_names_.push_back(ImageName(static_cast<int>(i), options.code_format));
     model.code_files_.push_back(std::move(bytes));
