@@ -2,6 +2,7 @@
 // read from (memory or files), the lamp radiance, the fit, the report.
 #include "capture/daemon/session_model.h"
 
+#include <cmath>
 #include <memory>
 #include <vector>
 
@@ -69,20 +70,16 @@ Result<std::unique_ptr<MapBands>> SessionBands(const MapStore* maps,
 std::string SessionFitReport(const Session& session, const StreamFitOutput& fit, double bpp) {
   const ProcessConfig& process = session.config().process;
   const std::string unit = FitSpaceUnit(process.fit_space);
+  const double rms = fit.selection.data_rms;
   std::string md = fmt::format(
       "# Reflectance model of {}\n\nbasis {}, method {}, fit space {}; chosen order {} "
       "({} terms); leave-one-out RMS error {:.5g} {} (the selection's own "
-      "estimate); {:.1f} bytes per pixel on disk; fitted in {:.2f} s\n\n"
-      "| order | terms | supported | LOO RMS error ({}) | condition | λ (relative) |\n"
-      "|---|---|---|---|---|---|\n",
+      "estimate), {} of the samples' RMS {:.5g}; {:.1f} bytes per pixel on disk; fitted in "
+      "{:.2f} s\n\n",
       session.layout().root.string(), process.basis, process.fit_method, process.fit_space,
-      fit.selection.order, fit.selection.projector.basis.size(), fit.loo_rmse, unit, bpp,
-      fit.time_s, unit);
-  for (const auto& o : fit.selection.orders) {
-    md += o.supported ? fmt::format("| {} | {} | yes | {:.5g} | {:.3g} | {:.3g} |\n", o.order, o.terms,
-                                    o.loo_rmse, o.condition, o.lambda_relative)
-                      : fmt::format("| {} | {} | no: {} | | | |\n", o.order, o.terms, o.refusal);
-  }
+      fit.selection.order, fit.selection.projector.basis.size(), fit.loo_rmse, unit,
+      LooRelativeCell(fit.loo_rmse, rms), rms, bpp, fit.time_s);
+  md += SelectionTable(fit.selection, unit);
   md += fmt::format("\npixels with missing samples: {}, flagged: {}\n", fit.missing.pixels_with_missing,
                     fit.missing.flagged);
   return md;

@@ -2,6 +2,7 @@
 // the paper's quadrature, order selection, refusals, missing samples, extrapolation.
 #include "process/model/harmonic/fit.h"
 
+#include <limits>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
@@ -335,6 +336,25 @@ TEST(LampRadiance, CalibratedFromAReferencePatch) {
   EXPECT_NEAR((*e)[0], 0.32 / 0.5, 1e-5);  // R: median of 0.30..0.34
   EXPECT_NEAR((*e)[2], 0.1 / 0.5, 1e-5);   // B
   EXPECT_FALSE(CalibrateLampRadiance(maps, {8, 8, 4, 4}, 0.5).ok());
+}
+
+TEST(SelectionTable, SaysIllConditionedAndGivesTheErrorRelativeToTheSamples) {
+  Selection sel;
+  sel.data_rms = 0.5;
+  OrderReport fine;
+  fine.order = 1, fine.terms = 4, fine.supported = true, fine.loo_rmse = 0.05, fine.condition = 3.2;
+  OrderReport deficient = fine;
+  deficient.order = 4, deficient.terms = 25, deficient.loo_rmse = 0.01;
+  deficient.condition = std::numeric_limits<double>::infinity(), deficient.lambda_relative = 1e-3;
+  OrderReport refused;
+  refused.order = 5, refused.terms = 36, refused.refusal = "more terms than poses";
+  sel.orders = {fine, deficient, refused};
+  const std::string md = SelectionTable(sel, "linear");
+  EXPECT_NE(md.find("| 1 | 4 | yes | 0.05 | 10.00% | 3.2 |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| 4 | 25 | yes | 0.01 | 2.00% | ill-conditioned"), std::string::npos) << md;
+  EXPECT_EQ(md.find("inf"), std::string::npos) << md;
+  EXPECT_NE(md.find("no: more terms than poses"), std::string::npos) << md;
+  EXPECT_EQ(LooRelativeCell(0.1, 0), "");
 }
 
 }  // namespace

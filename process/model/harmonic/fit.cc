@@ -214,6 +214,8 @@ Result<Selection> SelectProjector(const std::vector<Vec3>& dirs,
   }
 
   Selection sel;
+  if (count > 0 && gram.rows() > 0)
+    sel.data_rms = std::sqrt(std::max(0.0, gram.trace()) / (count * static_cast<double>(gram.rows())));
   std::map<int, Projector> built;
   for (int order = lo; order <= hi; ++order) {
     const auto t0 = Clock::now();
@@ -360,6 +362,31 @@ MissingStats ApplyProjector(const Projector& pr, const std::vector<Vec3>& dirs,
   }
   stats.patterns = cache.size();
   return stats;
+}
+
+std::string LooRelativeCell(double loo_rmse, double data_rms) {
+  return data_rms > 0 ? fmt::format("{:.2f}%", 100 * loo_rmse / data_rms) : "";
+}
+
+std::string SelectionTable(const Selection& selection, const std::string& unit) {
+  std::string md = fmt::format(
+      "| order | terms | supported | LOO RMS error ({}) | LOO / samples' RMS | condition | "
+      "λ (relative) |\n|---|---|---|---|---|---|---|\n", unit);
+  for (const auto& o : selection.orders) {
+    if (!o.supported) {
+      md += fmt::format("| {} | {} | no: {} | | | | |\n", o.order, o.terms, o.refusal);
+      continue;
+    }
+    // Infinite: the design is rank deficient; only rls's λ makes such an order solvable.
+    const std::string condition =
+        std::isfinite(o.condition) ? fmt::format("{:.3g}", o.condition)
+        : o.lambda_relative > 0    ? "ill-conditioned (rank deficient; regularised by λ)"
+                                   : "ill-conditioned (rank deficient)";
+    md += fmt::format("| {} | {} | yes | {:.5g} | {} | {} | {:.3g} |\n", o.order, o.terms,
+                      o.loo_rmse, LooRelativeCell(o.loo_rmse, selection.data_rms), condition,
+                      o.lambda_relative);
+  }
+  return md;
 }
 
 }  // namespace rig

@@ -100,7 +100,17 @@ struct Selection {
   Projector projector;
   int order = 0;
   std::vector<OrderReport> orders;
+  // RMS of the selection's samples (fit space, per pixel-channel): the scale a LOO error is
+  // judged against (loo_rmse / data_rms: the share of the signal the model misses).
+  double data_rms = 0;
 };
+
+// The selection's table in Markdown: per order its terms, whether it is supported (or why
+// not), its LOO RMS error (in `unit`) and relative to the samples' RMS, the design's condition
+// ("ill-conditioned" where it is infinite) and λ.
+std::string SelectionTable(const Selection& selection, const std::string& unit);
+// A LOO error as a percentage of the samples' RMS ("3.21%"); empty when the RMS is unknown.
+std::string LooRelativeCell(double loo_rmse, double data_rms);
 
 // Chooses order (and λ for rls) from LOO error computed from the Gram matrix. With
 // options.order >= 0 that order is built (and refused if it cannot be fitted stably); the

@@ -134,16 +134,12 @@ Result<MapFitResult> FitNearLampMaps(const MapFitRequest& req, const FitInput& i
       r.selection.projector.basis.size(), r.loo_rmse, near, r.time_s);
   result.report = fmt::format(
       "# Model fitted from {}\n\n{} maps {}x{}; basis {}, chosen order {} ({} terms), "
-      "leave-one-out RMS error {:.5g} (the selection's own estimate); {}.\n\n"
-      "| order | terms | supported | LOO RMS error | condition | λ (relative) |\n"
-      "|---|---|---|---|---|---|\n",
+      "leave-one-out RMS error {:.5g} (the selection's own estimate), {} of the samples' "
+      "RMS; {}.\n\n",
       req.list, paths.size(), r.width, r.height, BasisKindName(req.options.basis),
-      r.selection.order, r.selection.projector.basis.size(), r.loo_rmse, near);
-  for (const auto& o : r.selection.orders)
-    result.report += fmt::format("| {} | {} | {} | {} | {:.3g} | {:.3g} |\n", o.order, o.terms,
-                                 o.supported ? "yes" : "no: " + o.refusal,
-                                 o.supported ? fmt::format("{:.5g}", o.loo_rmse) : "—",
-                                 o.condition, o.lambda_relative);
+      r.selection.order, r.selection.projector.basis.size(), r.loo_rmse,
+      LooRelativeCell(r.loo_rmse, r.selection.data_rms), near);
+  result.report += SelectionTable(r.selection, "fit space");
   return result;
 }
 
