@@ -52,6 +52,23 @@ std::string Num(double v) { return fmt::format("{:.17g}", v); }
 
 }  // namespace
 
+ModelInfo FittedModelInfo(const FitOptions& options, const Projector& projector, double loo_rmse,
+                          const std::array<double, 3>& lamp_radiance_rgb,
+                          const LightFrameConfig& light_frame, const std::vector<Vec3>& directions) {
+  ModelInfo info;
+  info.method = options.method;
+  info.transform = options.transform;
+  info.lambda_relative = projector.lambda_relative;
+  info.lamp_radiance_rgb = lamp_radiance_rgb;
+  info.light_frame = light_frame;
+  info.loo_rmse = loo_rmse;
+  info.condition = projector.condition;
+  info.solved_condition = projector.solved_condition;
+  info.lamp_directions = directions;
+  info.sample_spacing_deg = SampleSpacingDeg(directions);
+  return info;
+}
+
 Model::Model(Basis basis, ModelInfo info, int width, int height)
     : basis_(basis), info_(std::move(info)), width_(width), height_(height) {}
 
@@ -335,18 +352,10 @@ Result<FitOutput> FitModel(const FitInput& in, const FitOptions& o) {
   std::vector<uint8_t> valid;
   out.missing = ApplyProjector(pr, in.directions, weights, o.max_condition, y, missing, &c, &valid);
 
-  ModelInfo info;
-  info.method = o.method;
-  info.transform = o.transform;
-  info.lambda_relative = pr.lambda_relative;
-  info.lamp_radiance_rgb = in.lamp_radiance_rgb;
-  info.light_frame = in.light_frame;
+  double loo_rmse = 0;
   for (const auto& r : out.selection.orders)
-    if (r.order == out.selection.order) info.loo_rmse = r.loo_rmse;
-  info.condition = pr.condition;
-  info.solved_condition = pr.solved_condition;
-  info.lamp_directions = in.directions;
-  info.sample_spacing_deg = SampleSpacingDeg(in.directions);
+    if (r.order == out.selection.order) loo_rmse = r.loo_rmse;
+  ModelInfo info = FittedModelInfo(o, pr, loo_rmse, in.lamp_radiance_rgb, in.light_frame, in.directions);
   info.flagged_pixels = out.missing.flagged;
   const int rows = in.radiance[0].rows, cols = in.radiance[0].cols;
   out.model = Model(pr.basis, info, cols, rows);

@@ -38,6 +38,12 @@ struct ModelInfo {
   std::string near_lamp;
 };
 
+// The header of a fitted model, the same for the in-memory fit and the streamed one: what the
+// options, the chosen projector and the fit's input say (flagged_pixels left to the caller).
+ModelInfo FittedModelInfo(const FitOptions& options, const Projector& projector, double loo_rmse,
+                          const std::array<double, 3>& lamp_radiance_rgb,
+                          const LightFrameConfig& light_frame, const std::vector<Vec3>& directions);
+
 class Model {
  public:
   Model() = default;

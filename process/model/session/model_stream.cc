@@ -322,17 +322,8 @@ Imf::Header StreamHeader(const StreamFitInput& in, const FitOptions& o, const St
                          int tile, bool with_valid, ExrPixelType type) {
   const Projector& pr = out.selection.projector;
   const NearLamp& lamp = in.near_lamp;
-  ModelInfo info;
-  info.method = o.method;
-  info.transform = o.transform;
-  info.lambda_relative = pr.lambda_relative;
-  info.lamp_radiance_rgb = in.lamp_radiance_rgb;
-  info.light_frame = in.light_frame;
-  info.loo_rmse = out.loo_rmse;
-  info.condition = pr.condition;
-  info.solved_condition = pr.solved_condition;
-  info.lamp_directions = in.directions;
-  info.sample_spacing_deg = SampleSpacingDeg(in.directions);
+  const ModelInfo info =
+      FittedModelInfo(o, pr, out.loo_rmse, in.lamp_radiance_rgb, in.light_frame, in.directions);
   Model header_model(pr.basis, info, out.width, out.height);
   auto attributes = ModelHeaderAttributes(header_model);
   attributes["flagged_pixels"] = "see the 'valid' channel (streamed fit)";
