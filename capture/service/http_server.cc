@@ -2,6 +2,7 @@
 #include "capture/service/http_server.h"
 
 #include <arpa/inet.h>
+#include <sys/socket.h>
 
 #include <chrono>
 #include <cmath>
@@ -127,6 +128,14 @@ namespace {
 
 using Handler = std::function<void(const httplib::Request&, httplib::Response&)>;
 
+// cpp-httplib's server with its listening socket at hand: cpp-httplib listens with a backlog
+// of 5, so that a burst of connections (a flood, or 40 page loads) has the kernel drop SYNs
+// and the clients retry a second later; listen() again takes the system's maximum instead.
+class ListeningServer : public httplib::Server {
+ public:
+  void WidenBacklog() { ::listen(svr_sock_, SOMAXCONN); }
+};
+
 // The handler, with the connection marked as answering (no read deadline while it runs).
 Handler Guarded(std::atomic<ConnectionGuard*>& guard, Handler h) {
   return [&guard, h = std::move(h)](const httplib::Request& req, httplib::Response& res) {
@@ -146,7 +155,7 @@ HttpServer::HttpServer(CaptureService& service, HttpOptions options)
     : service_(service),
       options_(std::move(options)),
       page_token_(RandomToken()),
-      server_(std::make_unique<httplib::Server>()) {}
+      server_(std::make_unique<ListeningServer>()) {}
 
 HttpServer::~HttpServer() { Stop(); }
 
@@ -166,6 +175,7 @@ Status HttpServer::Start() {
       return MakeError(ErrorCode::kBusy, where, "cannot listen (address in use, or not this host's)");
     port_ = options_.port;
   }
+  static_cast<ListeningServer&>(*server_).WidenBacklog();
   thread_ = std::thread([this] { server_->listen_after_bind(); });
   Log("rig")->info("daemon listening url=http://{}:{}/ token={}", options_.host, port_,
                    options_.token.empty() ? "none" : "required");

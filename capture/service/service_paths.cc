@@ -21,7 +21,8 @@ fs::path DefaultSessionsRoot() {
   return {};
 }
 
-Result<fs::path> ResolveUnderRoot(const std::string& given, const fs::path& root, const char* what) {
+Result<fs::path> ResolveUnderRoot(const std::string& given, const fs::path& root, const char* what,
+                                  const char* root_name) {
   if (root.empty())
     return MakeError(ErrorCode::kInvalidInput, what,
                      "the daemon has no sessions root (--sessions-root): jobs name no path");
@@ -39,9 +40,9 @@ Result<fs::path> ResolveUnderRoot(const std::string& given, const fs::path& root
   const fs::path rel = resolved.lexically_relative(base);
   const bool under = !rel.empty() && *rel.begin() != ".." && rel != ".";
   if (!under)
-    return MakeError(ErrorCode::kInvalidInput, what,
-                     "'{}' is not under the daemon's sessions root {} (--sessions-root)", given,
-                     base.string());
+    return MakeError(ErrorCode::kInvalidInput, what, "'{}' is not under {} {}{}", given,
+                     root_name ? root_name : "the daemon's sessions root", base.string(),
+                     root_name ? "" : " (--sessions-root)");
   return resolved;
 }
 
@@ -83,7 +84,7 @@ Result<std::string> ReadJobConfigFile(const std::string& given, const fs::path& 
 
 Result<std::string> ReadSessionFile(const fs::path& session, const std::string& relative,
                                     size_t max_bytes) {
-  RIG_ASSIGN_OR_RETURN(fs::path path, ResolveUnderRoot(relative, session, "file"));
+  RIG_ASSIGN_OR_RETURN(fs::path path, ResolveUnderRoot(relative, session, "file", "the session"));
   // Resolved before opening, and opened without following a last link: a link planted in
   // the session that points out of it is refused either way.
   if (fs::is_symlink(session / relative))

@@ -21,8 +21,9 @@ fs::path DefaultSessionsRoot();
 
 // `given` (absolute, or relative to `root`) resolved (weakly_canonical: links followed as far
 // as they exist) and checked to lie strictly under the resolved `root`. `what` names the
-// field in messages ("session", "config").
-Result<fs::path> ResolveUnderRoot(const std::string& given, const fs::path& root, const char* what);
+// field in messages ("session", "config"), `root_name` the root ("the daemon's sessions root").
+Result<fs::path> ResolveUnderRoot(const std::string& given, const fs::path& root, const char* what,
+                                  const char* root_name = nullptr);
 
 // The text of a job's configuration file `given`, under `root` (ResolveUnderRoot): a regular
 // file, not a link, of at most kMaxJobConfigBytes. The errors name the file, never its content.
