@@ -199,6 +199,7 @@ bool HttpServer::PreRouting(const httplib::Request& req, httplib::Response& res)
   policy.page_token = page_token_;
   auto refusal = CheckRequest(FactsOf(req), policy);
   if (!refusal) return false;
+  ++refused_;
   if (refusal->status == 401) res.set_header("WWW-Authenticate", "Bearer realm=\"rig\"");
   // A refused body is not read: the connection closes after the answer.
   if (refusal->status == 413 || refusal->status == 411) res.set_header("Connection", "close");

@@ -79,6 +79,8 @@ class HttpServer {
   const std::string& host() const { return options_.host; }
   // The token the status page is served with (X-Rig-Page-Token).
   const std::string& page_token() const { return page_token_; }
+  // Requests refused by the checks of request_checks.h since Start().
+  size_t refused() const { return refused_; }
   void Stop();
 
  private:
@@ -94,6 +96,7 @@ class HttpServer {
   std::unique_ptr<httplib::Server> server_;
   std::thread thread_;
   std::atomic<bool> stopping_{false};
+  std::atomic<size_t> refused_{0};
   int port_ = 0;
 };
 
