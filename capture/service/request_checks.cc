@@ -27,6 +27,13 @@ std::string Quoted(std::string_view s) {
   return "'" + out + "'";
 }
 
+// A method for a message: printable, at most 16 characters.
+std::string Method(std::string_view m) {
+  std::string out;
+  for (char c : m.substr(0, 16)) out += (c >= 0x20 && c < 0x7f) ? c : '?';
+  return out;
+}
+
 bool IsLoopbackName(const std::string& name) {
   if (name == "localhost") return true;
   in_addr v4{};
@@ -166,7 +173,7 @@ std::optional<Refusal> CheckLength(const RequestFacts& r) {
       return Refuse(413, fmt::format("a body of {} bytes (Content-Length): at most {} bytes", n,
                                      kMaxBodyBytes));
   } else if (IsStateChanging(r.method)) {
-    return Refuse(411, fmt::format("{} {} needs a Content-Length header", r.method.substr(0, 16),
+    return Refuse(411, fmt::format("{} {} needs a Content-Length header", Method(r.method),
                                    Quoted(r.path)));
   }
   return std::nullopt;
@@ -185,7 +192,7 @@ std::optional<Refusal> CheckStateChange(const RequestFacts& r, const RequestPoli
   if (!IsStateChanging(r.method)) return std::nullopt;
   if (r.sec_fetch_site && (*r.sec_fetch_site == "cross-site" || *r.sec_fetch_site == "same-site"))
     return Refuse(403, fmt::format("Sec-Fetch-Site {}: {} {} is refused from another site's page",
-                                   Quoted(*r.sec_fetch_site), r.method.substr(0, 16), Quoted(r.path)));
+                                   Quoted(*r.sec_fetch_site), Method(r.method), Quoted(r.path)));
   if (r.origin) {
     bool same = false;
     for (const char* scheme : {"http://", "https://"}) {
@@ -197,11 +204,11 @@ std::optional<Refusal> CheckStateChange(const RequestFacts& r, const RequestPoli
     if (!same)
       return Refuse(403, fmt::format("Origin {} is not this daemon's page ({}): {} {} refused",
                                      Quoted(*r.origin), r.host ? Quoted(*r.host) : "no Host",
-                                     r.method.substr(0, 16), Quoted(r.path)));
+                                     Method(r.method), Quoted(r.path)));
   }
   if (!r.content_type || !IsJsonContentType(*r.content_type))
     return Refuse(415, fmt::format("{} {} needs Content-Type application/json (got {})",
-                                   r.method.substr(0, 16), Quoted(r.path),
+                                   Method(r.method), Quoted(r.path),
                                    r.content_type ? Quoted(*r.content_type) : "none"));
   const bool from_browser = r.origin || r.sec_fetch_site || r.sec_fetch_mode;
   if (!from_browser) return std::nullopt;
@@ -209,7 +216,7 @@ std::optional<Refusal> CheckStateChange(const RequestFacts& r, const RequestPoli
                       SameSecret(*r.authorization, "Bearer " + p.bearer_token);
   if (bearer || (r.page_token && SameSecret(*r.page_token, p.page_token))) return std::nullopt;
   return Refuse(403, fmt::format("{} {} from a browser page needs the status page's {} header",
-                                 r.method.substr(0, 16), Quoted(r.path), kPageTokenHeader));
+                                 Method(r.method), Quoted(r.path), kPageTokenHeader));
 }
 
 std::optional<Refusal> CheckRequest(const RequestFacts& r, const RequestPolicy& p) {
