@@ -11,6 +11,8 @@
 #include <cstdlib>
 
 #include <fmt/format.h>
+
+#include "capture/service/tcp_bytes.h"
 #include <nlohmann/json.hpp>
 
 namespace rig {
@@ -117,13 +119,42 @@ void ConnectionGuard::Work() {
 
 void ConnectionGuard::Watch() {
   std::unique_lock lock(mu_);
-  while (!shutdown_) {
-    cv_.wait_for(lock, std::chrono::milliseconds(100));
+  for (int tick = 0; !shutdown_; ++tick) {
+    cv_.wait_for(lock, std::chrono::milliseconds(20));
     if (shutdown_) break;
-    Scan();
-    const auto now = Clock::now();
-    for (Conn& c : conns_) {
-      if ((c.state != State::kWaiting && c.state != State::kBody) || now < c.deadline) continue;
+    if (tick % 5 == 0) Scan();
+    Expire();
+  }
+}
+
+void ConnectionGuard::Expire() {
+  const auto now = Clock::now();
+  for (Conn& c : conns_) {
+    if (c.state != State::kWaiting && c.state != State::kBody && c.state != State::kRefused) continue;
+    if (!SameConnection(c.fd, c.addr, c.peer_port, port_)) {
+      c.state = State::kClosed;  // closed already; its number may be another file's now
+      continue;
+    }
+    if (c.state == State::kRefused) {
+      // Answered already: what the client sends on (the body nobody reads) is not taken for
+      // another request by cpp-httplib.
+      if (TcpBytesReceived(c.fd) - c.bytes_at_state > limits_.max_head_bytes ||
+          now - c.since > std::chrono::milliseconds(500)) {
+        ::shutdown(c.fd, SHUT_RDWR);
+        c.state = State::kClosed;
+      }
+      continue;
+    }
+    const uint64_t budget = c.state == State::kWaiting ? limits_.max_head_bytes
+                                                       : limits_.max_body_bytes + limits_.max_head_bytes;
+    const uint64_t received = TcpBytesReceived(c.fd) - c.bytes_at_state;
+    if (received > budget) {
+      AnswerAndShut(c.fd, c.state == State::kWaiting ? 431 : 413,
+                    c.state == State::kWaiting ? "Request Header Fields Too Large" : "Payload Too Large",
+                    fmt::format("{} bytes without the request's {} ending (at most {})", received,
+                                c.state == State::kWaiting ? "headers" : "body", budget));
+      c.state = State::kClosed;
+    } else if (now >= c.deadline) {
       AnswerAndShut(c.fd, 408, "Request Timeout",
                     fmt::format("the request did not arrive within {} s", limits_.request_timeout_s));
       c.state = State::kClosed;
@@ -146,6 +177,7 @@ void ConnectionGuard::Scan() {
       if (!Endpoints(static_cast<int>(fd), &local_port, &c.addr, &c.peer_port) || local_port != port_)
         continue;
       c.fd = static_cast<int>(fd);
+      c.bytes_at_state = TcpBytesReceived(c.fd);
       bool known = false;
       for (size_t i = 0; i < conns_.size(); ++i) {
         if (conns_[i].fd == c.fd && conns_[i].addr == c.addr && conns_[i].peer_port == c.peer_port) {
@@ -198,12 +230,18 @@ void ConnectionGuard::Mark(const std::string& addr, int port, State state) {
   std::lock_guard lock(mu_);
   for (Conn& c : conns_) {
     if (c.state == State::kClosed || c.addr != addr || c.peer_port != port) continue;
+    if (c.state == State::kRefused) return;  // stays so until it is shut
     c.state = state;
+    c.bytes_at_state = TcpBytesReceived(c.fd);
     c.since = Clock::now();
     c.deadline = c.since + std::chrono::duration_cast<Clock::duration>(
                                std::chrono::duration<double>(limits_.request_timeout_s));
     return;
   }
+}
+
+void ConnectionGuard::Refused(const std::string& addr, int port) {
+  Mark(addr, port, State::kRefused);
 }
 
 void ConnectionGuard::HeadersRead(const std::string& addr, int port) { Mark(addr, port, State::kBody); }

@@ -202,7 +202,8 @@ bool HttpServer::PreRouting(const httplib::Request& req, httplib::Response& res)
   ++refused_;
   if (refusal->status == 401) res.set_header("WWW-Authenticate", "Bearer realm=\"rig\"");
   // A refused body is not read: the connection closes after the answer.
-  if (refusal->status == 413 || refusal->status == 411) res.set_header("Connection", "close");
+  res.set_header("Connection", "close");
+  if (ConnectionGuard* g = guard_.load()) g->Refused(req.remote_addr, req.remote_port);
   Log("rig")->warn("daemon refused {} {} from {}:{}: {} {}", req.method.substr(0, 16),
                    req.path.substr(0, 200), req.remote_addr, req.remote_port, refusal->status,
                    refusal->error);
@@ -222,6 +223,7 @@ void HttpServer::Routes() {
     limits.max_connections = options_.max_connections;
     limits.max_streams = options_.max_streams;
     limits.request_timeout_s = options_.request_timeout_s;
+    limits.max_body_bytes = kMaxBodyBytes;
     auto* g = new ConnectionGuard(port_, limits);
     guard_ = g;
     return g;

@@ -269,6 +269,21 @@ TEST(DaemonHostile, AnOversizedBodyIsRefusedUnreadAndAChunkedOneToo) {
   ::close(fd);
   EXPECT_THAT(announced, HasSubstr("HTTP/1.1 413"));
   EXPECT_THAT(announced, HasSubstr("at most 1048576 bytes"));
+  // A request line without an end: cut by its byte budget, not grown for 5 s.
+  fd = Connect(d.port);
+  const long line_before = RssKiB();
+  const auto t1 = Clock::now();
+  std::string endless;
+  SendAll(fd, "GET /");
+  for (int i = 0; i < 400 && endless.find("HTTP/1.1") == std::string::npos; ++i) {
+    (void)!::send(fd, chunk.data(), chunk.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+    endless += ReadFor(fd, 0.01);
+  }
+  ::close(fd);
+  EXPECT_THAT(endless, HasSubstr("HTTP/1.1 431"));
+  EXPECT_THAT(endless, HasSubstr("without the request's headers ending (at most 65536)"));
+  EXPECT_LT(SecondsSince(t1), 1.0);
+  EXPECT_LT(RssKiB() - line_before, 64 * 1024);
   fd = Connect(d.port);
   SendAll(fd, "POST /api/stop HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(d.port) +
                   "\r\nContent-Type: application/json\r\nTransfer-Encoding: chunked\r\n\r\n2\r\n{}\r\n0\r\n\r\n");
