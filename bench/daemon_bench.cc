@@ -121,7 +121,9 @@ RealRun RunDirect(const rig::Config& config, const fs::path& dir) {
 
 // As `rig daemon` runs it: a job submitted over HTTP, a client polling the status.
 RealRun RunThroughService(const rig::Config& config, const fs::path& dir, int poll_hz) {
-  rig::CaptureService service(rig::DaemonHooks());
+  rig::ServiceOptions options;
+  options.sessions_root = dir.parent_path();  // the daemon writes under its sessions root only
+  rig::CaptureService service(rig::DaemonHooks(), options);
   rig::HttpOptions o;
   o.port = 0;
   rig::HttpServer http(service, o);

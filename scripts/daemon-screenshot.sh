@@ -10,7 +10,7 @@ out=${2:-$root/docs/images/daemon-status.png}
 tmp=$(mktemp -d)
 cp "$root/config/sim.toml" "$tmp/sim.toml"
 sed -i 's/^latency_scale = 0.0.*/latency_scale = 0.2/' "$tmp/sim.toml"
-"$build/rig/rig" daemon --listen 127.0.0.1:0 > "$tmp/daemon.log" 2>&1 &
+"$build/rig/rig" daemon --listen 127.0.0.1:0 --sessions-root "$tmp" > "$tmp/daemon.log" 2>&1 &
 pid=$!
 trap 'kill -TERM $pid 2>/dev/null || true; wait $pid 2>/dev/null || true' EXIT
 for _ in $(seq 100); do

@@ -6,6 +6,10 @@
 #include <unistd.h>
 
 #include <string>
+#include <string_view>
+
+#include "capture/session/journal_reader.h"
+#include "config/log.h"
 
 namespace rig {
 
@@ -16,6 +20,7 @@ void JournalTail::Update() {
   if (::fstat(fd, &st) == 0 && static_cast<uint64_t>(st.st_size) < offset_) {
     offset_ = 0;
     records_.clear();
+    skipped_ = 0;
   }
   std::string buf;
   char chunk[65536];
@@ -27,12 +32,21 @@ void JournalTail::Update() {
   ::close(fd);
   size_t start = 0;
   for (size_t nl; (nl = buf.find('\n', start)) != std::string::npos; start = nl + 1) {
-    auto rec = nlohmann::json::parse(buf.begin() + static_cast<std::ptrdiff_t>(start),
-                                     buf.begin() + static_cast<std::ptrdiff_t>(nl), nullptr,
-                                     /*allow_exceptions=*/false);
-    // A damaged line is the session validator's business (rig resume says which); the
-    // status just passes it by.
-    if (!rec.is_discarded() && rec.is_object()) records_.push_back(std::move(rec));
+    // Each line through the journal's validated reader: a record the rest of the status code
+    // reads with at()/get<>() is of the types it expects. A damaged or unexpected record is
+    // the session validator's business (rig resume says which); the status counts it, passes
+    // it by and goes on.
+    const std::string_view line(buf.data() + start, nl + 1 - start);
+    if (line.size() == 1) continue;
+    auto parsed = ParseJournal(line, path_.string());
+    if (!parsed.ok() || parsed->records.size() != 1) {
+      if (skipped_ == 0)
+        Log("session")->warn("daemon: {}: record skipped by the status: {}", path_.string(),
+                             parsed.ok() ? "damaged" : parsed.error().ToString());
+      ++skipped_;
+      continue;
+    }
+    records_.push_back(std::move(parsed->records.front()));
   }
   offset_ += start;
 }

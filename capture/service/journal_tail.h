@@ -1,6 +1,7 @@
 // A session's journal followed as it grows: the records appended since the last look, read
 // without taking the session's lock (the writer fsyncs whole lines; a line not yet ended is
-// left for the next look), and what they say about the session's progress.
+// left for the next look), each checked by the journal's validated reader (ParseJournal), and
+// what they say about the session's progress.
 #pragma once
 
 #include <cstdint>
@@ -42,11 +43,15 @@ class JournalTail {
   const std::vector<nlohmann::json>& records() const { return records_; }
   const std::filesystem::path& path() const { return path_; }
   JournalProgress Progress() const;
+  // Lines refused by the journal's validated reader (damaged, or a record of an unexpected
+  // type): not in records().
+  size_t skipped() const { return skipped_; }
 
  private:
   std::filesystem::path path_;
   uint64_t offset_ = 0;  // bytes of whole lines consumed
   std::vector<nlohmann::json> records_;
+  size_t skipped_ = 0;
 };
 
 }  // namespace rig

@@ -14,6 +14,8 @@
 #include "capture/daemon/daemon.h"
 #include "capture/daemon/processor.h"
 #include "capture/devices/signals.h"
+#include "capture/service/request_checks.h"
+#include "capture/service/service_paths.h"
 #include "config/log.h"
 #include "process/io/exr_io.h"
 #include "process/render/tonemap.h"
@@ -50,6 +52,15 @@ Result<bool> BoolField(const nlohmann::json& r, const char* key, bool fallback) 
 std::string Diagnostics(const ConfigResult& cr) {
   std::string s;
   for (const auto& d : cr.diagnostics) s += (s.empty() ? "" : "\n") + d.ToString();
+  return s;
+}
+
+// Where the problems of a configuration file are, without their messages (which quote keys
+// and values of the file).
+std::string Positions(const ConfigResult& cr) {
+  std::string s = fmt::format("{} problem(s) in the configuration; check it with `rig "
+                              "check-config`:", cr.diagnostics.size());
+  for (const auto& d : cr.diagnostics) s += fmt::format(" line {} column {};", d.line, d.column);
   return s;
 }
 
@@ -96,12 +107,8 @@ Result<JobInfo> ParseJobRequest(const nlohmann::json& r, const ServiceOptions& o
   RIG_ASSIGN_OR_RETURN(std::string kind, StringField(r, "kind", true));
   RIG_ASSIGN_OR_RETURN(job.kind, ParseKind(kind));
   RIG_ASSIGN_OR_RETURN(std::string session, StringField(r, "session", true));
-  job.session = fs::path(session).lexically_normal();
-  // The daemon's working directory is not the client's: only absolute paths mean the same.
-  if (!job.session.is_absolute())
-    return MakeError(ErrorCode::kInvalidInput, "session",
-                     "'{}' must be an absolute path on the daemon's host", session);
-  if (job.session.has_filename() == false) job.session = job.session.parent_path();
+  // Under the sessions root only (relative paths are taken from it), resolved through links.
+  RIG_ASSIGN_OR_RETURN(job.session, ResolveUnderRoot(session, options.sessions_root, "session"));
   RIG_ASSIGN_OR_RETURN(job.process, BoolField(r, "process", true));
   RIG_ASSIGN_OR_RETURN(job.force, BoolField(r, "force", false));
   RIG_ASSIGN_OR_RETURN(job.dry_run, BoolField(r, "dry_run", false));
@@ -116,24 +123,33 @@ Result<JobInfo> ParseJobRequest(const nlohmann::json& r, const ServiceOptions& o
                      "already holds a session; resume it (kind \"resume\") instead");
   RIG_ASSIGN_OR_RETURN(std::string config_name, StringField(r, "config", false));
   RIG_ASSIGN_OR_RETURN(std::string config_toml, StringField(r, "config_toml", false));
+  if (std::string problem = ClientPathProblem(config_name); !problem.empty())
+    return MakeError(ErrorCode::kInvalidInput, "config", "the name holds {}: refused", problem);
   ConfigResult cr;
   if (!config_toml.empty()) {
+    if (config_toml.size() > kMaxJobConfigBytes)
+      return MakeError(ErrorCode::kInvalidInput, "config_toml", "{} bytes: at most {}",
+                       config_toml.size(), kMaxJobConfigBytes);
     job.config = config_name.empty() ? "request.config_toml" : config_name;
     cr = ParseConfig(config_toml, job.config);
+    // The client's own text: its diagnostics in full.
+    if (!cr.ok()) return MakeError(ErrorCode::kInvalidInput, job.config, "{}", Diagnostics(cr));
+  } else if (!config_name.empty()) {
+    // A file of the daemon's host, under the sessions root: where its problems are, never
+    // what it holds (the answer goes to whoever asked).
+    RIG_ASSIGN_OR_RETURN(std::string text, ReadJobConfigFile(config_name, options.sessions_root));
+    job.config = config_name;
+    cr = ParseConfig(text, config_name);
+    if (!cr.ok()) return MakeError(ErrorCode::kInvalidInput, job.config, "{}", Positions(cr));
   } else {
-    fs::path path = !config_name.empty() ? fs::path(config_name)
-                                         : options.default_config.value_or(fs::path());
-    if (path.empty())
+    if (!options.default_config)
       return MakeError(ErrorCode::kInvalidInput, "config",
-                       "a capture needs a configuration: \"config_toml\", \"config\" or the "
-                       "daemon's --config");
-    if (!path.is_absolute())
-      return MakeError(ErrorCode::kInvalidInput, "config",
-                       "'{}' must be an absolute path on the daemon's host", path.string());
-    job.config = path.string();
-    cr = LoadConfig(path.string());
+                       "a capture needs a configuration: \"config_toml\", \"config\" (a file "
+                       "under the sessions root) or the daemon's --config");
+    job.config = options.default_config->string();
+    cr = LoadConfig(job.config);
+    if (!cr.ok()) return MakeError(ErrorCode::kInvalidInput, job.config, "{}", Diagnostics(cr));
   }
-  if (!cr.ok()) return MakeError(ErrorCode::kInvalidInput, job.config, "{}", Diagnostics(cr));
   Config config = cr.config;
   if (job.dry_run) {
     // What `rig capture --dry-run` does: every device simulated.
@@ -205,8 +221,8 @@ Result<JobInfo> CaptureService::Submit(const nlohmann::json& request) {
   if (parsed.ok()) {
     session = parsed->session;
   } else if (request.is_object() && request.contains("session") && request["session"].is_string()) {
-    session = fs::path(request["session"].get<std::string>()).lexically_normal();
-    if (!session.has_filename()) session = session.parent_path();
+    auto resolved = ResolveUnderRoot(request["session"].get<std::string>(), options_.sessions_root, "session");
+    if (resolved.ok()) session = *resolved;
   }
   if (!session.empty()) {
     for (int id : queue_)
@@ -578,6 +594,7 @@ nlohmann::json CaptureService::StatusJson() {
   if (p.last_fault) s["journal_fault"] = *p.last_fault;
   if (p.last_interrupted) s["journal_interrupted"] = *p.last_interrupted;
   s["journal_records"] = w.tail.records().size();
+  s["journal_skipped"] = w.tail.skipped();
   nlohmann::json grid = nlohmann::json::array();
   for (const Pose& g : w.grid) {
     const std::string n = g.Name();
@@ -605,17 +622,26 @@ nlohmann::json CaptureService::Journal(size_t since) {
 }
 
 std::vector<uint8_t> CaptureService::PreviewFrame() {
-  fs::path file;
+  fs::path root;
+  std::string relative;
   {
     std::lock_guard lock(mu_);
     if (!watched_) return {};
     watched_->tail.Update();
     JournalProgress p = watched_->tail.Progress();
     if (p.last_frame_file.empty()) return {};
-    file = watched_->root / p.last_frame_file;
+    root = watched_->root;
+    relative = p.last_frame_file;
   }
-  auto bytes = ReadFileBytes(file);
-  if (!bytes.ok()) return {};
+  const fs::path file = root / relative;
+  // Inside the session only: a planted link out of it is not followed.
+  auto text = ReadSessionFile(root, relative, size_t{512} << 20);
+  if (!text.ok()) {
+    Log("session")->warn("daemon preview: {}", text.error().ToString());
+    return {};
+  }
+  std::vector<uint8_t> bytes_v(text->begin(), text->end());
+  auto* bytes = &bytes_v;
   if (file.extension() == ".jpg") return *bytes;
   cv::Mat img = cv::imdecode(*bytes, cv::IMREAD_COLOR);
   if (img.empty()) return {};

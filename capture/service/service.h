@@ -59,6 +59,9 @@ struct ServiceHooks {
 struct ServiceOptions {
   // The configuration a capture job uses when it names none (`rig daemon --config`).
   std::optional<fs::path> default_config;
+  // Every job's session lies under it, and a configuration named by path is a file there
+  // (`rig daemon --sessions-root`; service_paths.h). Empty: every job naming a path is refused.
+  fs::path sessions_root;
 };
 
 enum class JobKind { kCapture, kResume, kProcess };
@@ -85,9 +88,9 @@ struct JobInfo {
 };
 
 // A job as submitted (POST /api/jobs): {"kind": "capture"|"resume"|"process",
-// "session": ABSOLUTE_DIR, "config_toml": TEXT with "config": ITS NAME (capture; or "config":
-// an absolute path on the daemon's host; default: the daemon's --config), "dry_run": bool,
-// "process": bool, "force": bool}.
+// "session": DIR under the sessions root (absolute, or relative to it), "config_toml": TEXT
+// with "config": ITS NAME (capture; or "config": a regular file under the sessions root of at
+// most 1 MiB; default: the daemon's --config), "dry_run": bool, "process": bool, "force": bool}.
 Result<JobInfo> ParseJobRequest(const nlohmann::json& request, const ServiceOptions& options);
 
 class CaptureService {

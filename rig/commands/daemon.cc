@@ -9,6 +9,7 @@
 #include "capture/devices/signals.h"
 #include "capture/service/http_server.h"
 #include "capture/service/service.h"
+#include "capture/service/service_paths.h"
 #include "config/log.h"
 #include "rig/commands/command.h"
 #include "rig/commands/daemon_client.h"
@@ -24,6 +25,8 @@ int RunDaemon(int argc, char** argv) {
   std::string listen = fmt::format("127.0.0.1:{}", kDefaultDaemonPort), config_path, token_file,
               level;
   bool allow_remote = false;
+  std::string sessions_root = DefaultSessionsRoot().string();
+  std::vector<std::string> allowed_hosts;
   app.add_option("--listen", listen, "ADDRESS:PORT to serve on (port 0: any free port)")
       ->capture_default_str();
   app.add_option("--config", config_path, "configuration of capture jobs that name none");
@@ -32,6 +35,13 @@ int RunDaemon(int argc, char** argv) {
   app.add_option("--token-file", token_file,
                  "file whose first line is the token every /api/ request must send as "
                  "'Authorization: Bearer TOKEN'");
+  app.add_option("--sessions-root", sessions_root,
+                 "folder every job's session lies under (created if missing); a job's \"config\" "
+                 "path must be a file there too")
+      ->capture_default_str();
+  app.add_option("--allowed-host", allowed_hosts,
+                 "a name (NAME or NAME:PORT) a reverse proxy forwards with, accepted in Host and "
+                 "Origin besides the listening address and the loopback names (repeatable)");
   AddLogLevelOption(app, &level);
   if (auto rc = ParseCommandLine(app, argc, argv)) return *rc;
   if (auto rc = ApplyLogLevel(level)) return *rc;
@@ -42,6 +52,7 @@ int RunDaemon(int argc, char** argv) {
   http.host = where->first;
   http.port = where->second;
   http.allow_remote = allow_remote;
+  http.allowed_hosts = allowed_hosts;
   if (!token_file.empty()) {
     auto token = ReadTokenFile(token_file);
     if (!token.ok()) return ReportError("daemon", token.error());
@@ -50,6 +61,15 @@ int RunDaemon(int argc, char** argv) {
   if (Status st = CheckListenOptions(http); !st.ok()) return ReportError("daemon", st.error());
 
   ServiceOptions options;
+  if (sessions_root.empty())
+    return ReportError("daemon", MakeError(ErrorCode::kInvalidInput, "--sessions-root",
+                                           "neither XDG_DATA_HOME nor HOME is set: name the folder"));
+  std::error_code ec;
+  fs::create_directories(sessions_root, ec);
+  if (ec || !fs::is_directory(sessions_root))
+    return ReportError("daemon", MakeError(ErrorCode::kIo, sessions_root, "cannot create the sessions root: {}",
+                                           ec ? ec.message() : "not a folder"));
+  options.sessions_root = fs::absolute(sessions_root);
   if (!config_path.empty()) {
     ConfigResult cr = LoadConfig(config_path);
     if (!cr.ok()) {
@@ -64,6 +84,7 @@ int RunDaemon(int argc, char** argv) {
   HttpServer server(service, http);
   if (Status st = server.Start(); !st.ok()) return ReportError("daemon", st.error());
   service.Start();
+  std::printf("rig daemon: sessions under %s\n", options.sessions_root.c_str());
   std::printf("rig daemon: listening on http://%s:%d/ (pid %d)\n",
               http.host.find(':') != std::string::npos ? ("[" + http.host + "]").c_str() : http.host.c_str(),
               server.port(), static_cast<int>(::getpid()));

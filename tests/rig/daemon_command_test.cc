@@ -37,8 +37,8 @@ std::string ReadAll(const std::string& path) {
 }
 
 // Starts `rig daemon` on an ephemeral loopback port; returns its pid and port.
-std::pair<pid_t, int> StartDaemon(const std::string& log) {
-  pid_t pid = testing::SpawnRig({"daemon", "--listen", "127.0.0.1:0"}, log);
+std::pair<pid_t, int> StartDaemon(const std::string& log, const std::string& sessions_root) {
+  pid_t pid = testing::SpawnRig({"daemon", "--listen", "127.0.0.1:0", "--sessions-root", sessions_root}, log);
   const std::regex re("listening on http://127\\.0\\.0\\.1:([0-9]+)/");
   for (int i = 0; i < 200; ++i) {
     std::smatch m;
@@ -54,7 +54,7 @@ TEST(DaemonCommand, SubmitStatusSigtermParksAsCtrlCThenResumeThroughTheDaemon) {
   const std::string dir = testing::FreshTempDir("daemon_command");
   const std::string cfg = testing::WriteSimConfig(dir, kSmall);
   const fs::path session = fs::path(dir) / "S";
-  auto [pid, port] = StartDaemon(dir + "/daemon1.log");
+  auto [pid, port] = StartDaemon(dir + "/daemon1.log", dir);
   ASSERT_GT(port, 0);
   const std::string url = "http://127.0.0.1:" + std::to_string(port);
 
@@ -99,7 +99,7 @@ TEST(DaemonCommand, SubmitStatusSigtermParksAsCtrlCThenResumeThroughTheDaemon) {
   EXPECT_EQ(none.status, 1) << none.output;
   EXPECT_THAT(none.output, HasSubstr("no daemon answers"));
 
-  auto [pid2, port2] = StartDaemon(dir + "/daemon2.log");
+  auto [pid2, port2] = StartDaemon(dir + "/daemon2.log", dir);
   ASSERT_GT(port2, 0);
   testing::CommandResult res = testing::RunRig("resume " + session.string() +
                                                " --no-process --wait --daemon 127.0.0.1:" +

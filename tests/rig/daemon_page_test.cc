@@ -44,7 +44,9 @@ count = 3
 h_max_deg = 30
 v_max_deg = 10
 )");
-  CaptureService service(DaemonHooks());
+  ServiceOptions options;
+  options.sessions_root = dir;
+  CaptureService service(DaemonHooks(), options);
   HttpOptions o;
   o.port = 0;
   HttpServer http(service, o);

@@ -34,11 +34,19 @@ ev_step = 1.5
 count = 3
 )";
 
+ServiceOptions Under(const std::string& root) {
+  ServiceOptions o;
+  o.sessions_root = root;
+  return o;
+}
+
 struct Daemon {
-  CaptureService service{DaemonHooks()};
+  CaptureService service;
   std::unique_ptr<HttpServer> http;
   std::unique_ptr<DaemonClient> client;
-  explicit Daemon(const std::string& token = "") {
+  // Sessions (and configuration files) under `root`.
+  explicit Daemon(const std::string& root, const std::string& token = "")
+      : service(DaemonHooks(), Under(root)) {
     HttpOptions o;
     o.host = "127.0.0.1";
     o.port = 0;
@@ -135,7 +143,7 @@ TEST(DaemonService, StopMidSessionThenResumeStoresWhatAnUninterruptedSessionStor
   const std::string dir = testing::FreshTempDir("daemon_service");
   const std::string cfg = testing::WriteSimConfig(dir, kSmall);
   const fs::path a = fs::path(dir) / "A", b = fs::path(dir) / "B";
-  Daemon d;
+  Daemon d(dir);
   EXPECT_EQ(d.Get()["state"], "idle");
 
   auto job = d.client->Post("/api/jobs", {{"kind", "capture"}, {"session", a.string()},
@@ -224,7 +232,7 @@ TEST(DaemonService, ProcessJobMergesAndFitsAndPreviewsServeJpeg) {
   const std::string cfg = testing::WriteSimConfig(
       dir, std::string(kSmall) + "[grid]\nh_max_deg = 30\nv_max_deg = 10\n");
   const fs::path a = fs::path(dir) / "A";
-  Daemon d;
+  Daemon d(dir);
   auto none = d.client->Get("/api/preview/frame.jpg");
   EXPECT_FALSE(none.ok());  // no session yet: 404
   auto cap = d.client->Post("/api/jobs", {{"kind", "capture"}, {"session", a.string()}, {"config", cfg},
@@ -263,9 +271,9 @@ TEST(DaemonService, ProcessJobMergesAndFitsAndPreviewsServeJpeg) {
   EXPECT_EQ(events.find("id: 0\n"), std::string::npos);
   EXPECT_NE(events.find("event: status\ndata: {\"eta_s\""), std::string::npos) << events.substr(events.size() - 300);
   // Bad requests name what is wrong.
-  auto bad = d.client->Post("/api/jobs", {{"kind", "capture"}, {"session", "relative/S"}, {"config", cfg}});
+  auto bad = d.client->Post("/api/jobs", {{"kind", "capture"}, {"session", "../elsewhere/S"}, {"config", cfg}});
   ASSERT_FALSE(bad.ok());
-  EXPECT_THAT(bad.error().message, HasSubstr("absolute"));
+  EXPECT_THAT(bad.error().message, HasSubstr("is not under the daemon's sessions root"));
   auto again = d.client->Post("/api/jobs", {{"kind", "capture"}, {"session", a.string()}, {"config", cfg}});
   ASSERT_FALSE(again.ok());
   EXPECT_THAT(again.error().message, HasSubstr("already holds a session"));
@@ -277,7 +285,7 @@ TEST(DaemonService, ProcessJobMergesAndFitsAndPreviewsServeJpeg) {
 
 TEST(DaemonService, TokenIsRequiredOnEveryApiRequestWhenSet) {
   ClearStopForTesting();
-  Daemon d("s3cret-token");
+  Daemon d(testing::FreshTempDir("daemon_token"), "s3cret-token");
   httplib::Client c("127.0.0.1", d.http->port());
   auto no = c.Get("/api/status");
   ASSERT_TRUE(no);

@@ -61,10 +61,23 @@ struct PageRun {
 };
 
 // Serves `dir` on 127.0.0.1, opens `page` (a path under it, or a file:// URL when `file_url`)
-// in headless Chromium with ?report=<server>, waits for /done.
+// in headless Chromium with ?report=<server> (the hook added to the test's copy), waits for /done.
+// The test's own copy of the page: `dir`/viewer.js (written by rig view, which publishes no
+// test hook) with tests/rig/viewer_report_hook.js put inside its closure.
+void AddReportHook(const std::string& dir) {
+  const std::string js_path = dir + "/viewer.js";
+  std::string js = testing::ReadText(js_path);
+  if (js.find("params.get('report')") != std::string::npos) return;  // added already
+  const size_t end = js.rfind("})();");
+  ASSERT_NE(end, std::string::npos) << js_path << " does not end in its closure";
+  js.insert(end, testing::ReadText(testing::SourceDir() + "/tests/rig/viewer_report_hook.js"));
+  std::ofstream(js_path, std::ios::binary) << js;
+}
+
 PageRun RunPage(const std::string& dir, const std::string& query, bool file_url = false,
                 int width = 400, int height = 320, int timeout_s = 60) {
   PageRun run;
+  AddReportHook(dir);
   std::mutex mu;
   std::condition_variable cv;
   httplib::Server server;
