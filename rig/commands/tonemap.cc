@@ -13,6 +13,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "config/config.h"
+#include "process/io/image_io.h"
 #include "process/render/radiance_file.h"
 #include "process/io/exr_io.h"
 #include "process/render/tonemap.h"
@@ -153,13 +154,8 @@ int RunTonemap(int argc, char** argv) {
   } else {
     cv::hconcat(panels, result);
   }
-  try {
-    if (!cv::imwrite(out, result, {cv::IMWRITE_PNG_COMPRESSION, 9})) {
-      return ReportError("tonemap", MakeError(ErrorCode::kIo, out, "cannot write the picture"));
-    }
-  } catch (const cv::Exception& e) {
-    return ReportError("tonemap", MakeError(ErrorCode::kIo, out, "cannot write: {}", e.what()));
-  }
+  if (Status st = WriteImageFile(out, result, {cv::IMWRITE_PNG_COMPRESSION, 9}); !st.ok())
+    return ReportError("tonemap", st.error());
   return 0;
 }
 
