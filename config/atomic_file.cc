@@ -99,9 +99,13 @@ Result<int> OpenParent(const fs::path& path, fs::path* dir) {
   *dir = path.parent_path().empty() ? fs::path(".") : path.parent_path();
   std::error_code ec;
   fs::create_directories(*dir, ec);
-  if (ec) return MakeError(ErrorCode::kIo, dir->string(), "cannot create folder: {}", ec.message());
+  if (ec)
+    return MakeError(ErrorCode::kIo, path.string(), "cannot create folder {}: {}", dir->string(),
+                     ec.message());
   int fd = ::open(dir->c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) return Errno(*dir, "cannot open folder");
+  if (fd < 0)
+    return MakeError(ErrorCode::kIo, path.string(), "cannot open folder {}: {}", dir->string(),
+                     std::strerror(errno));
   return fd;
 }
 
