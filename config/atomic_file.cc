@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <stdio.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -385,7 +386,12 @@ void RemoveStaleTemporaries(const fs::path& target) {
     if (!IsTemporaryFolderOf(entry, name)) continue;
     std::error_code ec2;
     if (it->symlink_status(ec2).type() != fs::file_type::directory) continue;
-    fs::remove_all(it->path(), ec2);
+    // A live writer holds an flock on its folder; a killed one's lock went with it.
+    int fd = ::open(it->path().c_str(), O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+    if (fd < 0) continue;
+    const bool stale = ::flock(fd, LOCK_EX | LOCK_NB) == 0;
+    if (stale) fs::remove_all(it->path(), ec2);
+    ::close(fd);
   }
 }
 
@@ -413,6 +419,9 @@ Result<AtomicFolder> AtomicFolder::Begin(const fs::path& target_in, const EntryF
   AtomicFolder f;
   f.target_ = target;
   f.temp_ = tmpl;
+  f.lock_fd_ = ::open(tmpl.c_str(), O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+  if (f.lock_fd_ < 0 || ::flock(f.lock_fd_, LOCK_EX | LOCK_NB) != 0)
+    return Errno(tmpl, "cannot lock the temporary folder");
   return f;
 }
 
@@ -420,22 +429,27 @@ AtomicFolder::AtomicFolder(AtomicFolder&& o) noexcept { *this = std::move(o); }
 
 AtomicFolder& AtomicFolder::operator=(AtomicFolder&& o) noexcept {
   if (this != &o) {
-    if (!temp_.empty()) {
-      std::error_code ec;
-      fs::remove_all(temp_, ec);
-    }
+    Release();
     target_ = std::move(o.target_);
     temp_ = std::move(o.temp_);
+    lock_fd_ = o.lock_fd_;
     o.temp_.clear();
+    o.lock_fd_ = -1;
   }
   return *this;
 }
 
-AtomicFolder::~AtomicFolder() {
-  if (temp_.empty()) return;
-  std::error_code ec;
-  fs::remove_all(temp_, ec);
+void AtomicFolder::Release() {
+  if (!temp_.empty()) {
+    std::error_code ec;
+    fs::remove_all(temp_, ec);
+    temp_.clear();
+  }
+  if (lock_fd_ >= 0) ::close(lock_fd_);
+  lock_fd_ = -1;
 }
+
+AtomicFolder::~AtomicFolder() { Release(); }
 
 Status AtomicFolder::Commit() {
   if (temp_.empty()) return MakeError(ErrorCode::kInternal, target_.string(), "committed twice");
@@ -456,11 +470,9 @@ Status AtomicFolder::Commit() {
   } else {
     if (::renameat2(AT_FDCWD, temp_.c_str(), AT_FDCWD, target_.c_str(), RENAME_EXCHANGE) != 0)
       return Errno(target_, "cannot exchange the written folder with the old one");
-    // temp_ now names the old folder.
-    std::error_code ec;
-    fs::remove_all(temp_, ec);
   }
-  temp_.clear();
+  // temp_ now names the old folder (or nothing); the lock goes with it.
+  Release();
   const fs::path parent = target_.parent_path().empty() ? fs::path(".") : target_.parent_path();
   return FsyncDirectory(parent);
 }

@@ -85,9 +85,9 @@ class AtomicFile {
 // A folder written whole. Begin() refuses a `target` that is a symbolic link or not a folder
 // and, when `replaceable` is given, a folder holding any entry it rejects (kInvalidInput naming
 // the entry: someone else's files are never removed); it removes stale ".<name>.XXXXXX"
-// folders of killed writers and makes a fresh one. Every file goes into dir(); Commit() moves
-// it into place (exchanged with the old folder, which is then removed). Destroyed uncommitted,
-// the temporary folder is removed.
+// folders of killed writers (none a live writer holds an flock on) and makes a fresh one.
+// Every file goes into dir(); Commit() moves it into place (exchanged with the old folder,
+// which is then removed). Destroyed uncommitted, the temporary folder is removed.
 class AtomicFolder {
  public:
   using EntryFilter = std::function<bool(const std::string& name)>;
@@ -105,7 +105,9 @@ class AtomicFolder {
 
  private:
   AtomicFolder() = default;
+  void Release();
   std::filesystem::path target_, temp_;
+  int lock_fd_ = -1;  // flock on temp_ while it is written: not stale to another writer
 };
 
 // Copies the regular file `from` to `to` (WriteFileAtomic, overwrite off): `from` is opened

@@ -148,6 +148,21 @@ TEST(AtomicFolder, ReplacesTheOldFolderWholeAndCleansStaleTemporaries) {
   EXPECT_EQ(Names(dir), (std::vector<std::string>{"model"}));
 }
 
+TEST(AtomicFolder, ALiveWritersTemporaryIsNotStaleToAnother) {
+  const fs::path dir = testing::FreshTempDir("atomic-folder-two");
+  auto first = AtomicFolder::Begin(dir / "model");
+  ASSERT_TRUE(first.ok());
+  auto second = AtomicFolder::Begin(dir / "model");  // would remove a killed writer's
+  ASSERT_TRUE(second.ok());
+  EXPECT_TRUE(fs::is_directory(first->dir()));
+  Put(first->dir() / "info.json", "first");
+  Put(second->dir() / "info.json", "second");
+  ASSERT_TRUE(first->Commit().ok());
+  ASSERT_TRUE(second->Commit().ok());
+  EXPECT_EQ(Slurp(dir / "model" / "info.json"), "second");
+  EXPECT_EQ(Names(dir), (std::vector<std::string>{"model"}));
+}
+
 TEST(AtomicFolder, RefusesALinkAndAFolderHoldingOtherFiles) {
   const fs::path dir = testing::FreshTempDir("atomic-folder-refuse");
   fs::create_directory(dir / "elsewhere");
