@@ -65,8 +65,28 @@ while IFS= read -r -d '' file; do
 done < <(find . \( -name '*.h' -o -name '*.cc' -o -name '*.cpp' -o -name '*.hpp' \) \
            -not -path './build*' -not -path './.git/*' -print0)
 
-if [ "$bad" -gt 0 ]; then
-  echo "check-layers: $bad include(s) against the layers in $files files"
+# Every file the product creates goes through the one writer (config/atomic_file.h: a fresh
+# temporary, O_EXCL|O_NOFOLLOW, renamed over the target): no direct cv::imwrite, std::ofstream,
+# fopen for writing, copy_file or VideoWriter to an output outside it. The allowlist: the writer
+# itself, and the video writer, which opens its file by name inside StagedFile's private folder.
+writers=0
+while IFS= read -r hit; do
+  case "$hit" in
+    ./config/atomic_file.cc:*) continue ;;
+    ./process/render/relight.cc:*VideoWriter*) continue ;;
+  esac
+  hit=${hit#./}; file=${hit%%:*}; rest=${hit#*:}; line=${rest%%:*}; code=${rest#*:}
+  echo "$file:$line: writes a file around the one writer (config/atomic_file.h: WriteFileAtomic," \
+       "AtomicFile, AtomicFolder, WriteImageFile): ${code#"${code%%[![:space:]]*}"}"
+  writers=$((writers + 1))
+done < <(find ./config ./process ./capture ./sim ./rig \( -name '*.h' -o -name '*.cc' \) \
+           -not -path './build*' 2>/dev/null -print0 |
+         xargs -0 -r grep -n -E 'cv::imwrite|std::ofstream|[^a-z_]fopen\([^)]*"[wa]|copy_file\(|cv::VideoWriter' /dev/null |
+         grep -v -E ':[0-9]+:[[:space:]]*//')
+
+if [ "$bad" -gt 0 ] || [ "$writers" -gt 0 ]; then
+  [ "$bad" -gt 0 ] && echo "check-layers: $bad include(s) against the layers in $files files"
+  [ "$writers" -gt 0 ] && echo "check-layers: $writers write(s) around the one writer"
   exit 1
 fi
 echo "check-layers: $files files, every include points down the layers"

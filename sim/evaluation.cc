@@ -43,7 +43,7 @@ Status WriteText(const fs::path& path, const std::string& text) {
 
 Status WritePng(const fs::path& path, const cv::Mat& img) {
   try {
-    if (!cv::imwrite(path.string(), img)) return MakeError(ErrorCode::kIo, path.string(), "cannot write");
+    RIG_TRY(WriteImageFile(path.string(), img));
   } catch (const cv::Exception& e) {
     return MakeError(ErrorCode::kIo, path.string(), "cannot write: {}", e.what());
   }

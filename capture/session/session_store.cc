@@ -121,54 +121,15 @@ Result<std::pair<Fd, std::string>> SplitInside(const fs::path& root, const std::
   return std::make_pair(std::move(dir), std::move(name));
 }
 
-// The atomic write of `bytes` as `name` in the open folder `dir_fd` (shown as `dir`).
+// The session's write of `name` in the open folder `dir_fd`: a link or a folder at the name is
+// refused (a session's parts are its own), then the project's one writer (config/atomic_file.h).
 Status WriteAtomicAt(int dir_fd, const fs::path& dir, const std::string& name,
                      std::span<const uint8_t> bytes, bool overwrite) {
-  const fs::path path = dir / name;
   struct stat st {};
-  if (::fstatat(dir_fd, name.c_str(), &st, AT_SYMLINK_NOFOLLOW) == 0) {
-    if (!overwrite)
-      return MakeError(ErrorCode::kIo, path.string(), "refusing to overwrite an existing file");
-    if (!S_ISREG(st.st_mode)) return LinkRefused(path);
-  }
-  // A fresh name each time: the process id in it (a forked child inherits this generator's
-  // state and would otherwise repeat its parent's names), and another name when one is taken
-  // (a temporary left by a writer that was killed).
-  static thread_local std::mt19937_64 rng{std::random_device{}()};
-  std::string tmp;
-  int fd = -1;
-  for (int attempt = 0; attempt < 16 && fd < 0; ++attempt) {
-    tmp = fmt::format(".{}.tmp{}.{:016x}", name, ::getpid(), rng());
-    fd = ::openat(dir_fd, tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644);
-    if (fd < 0 && errno != EEXIST) break;
-  }
-  if (fd < 0) return Errno(dir / tmp, "cannot create temporary file");
-  Status status = WriteAll(fd, bytes.data(), bytes.size(), dir / tmp);
-  if (status.ok() && ::fsync(fd) != 0) status = Errno(dir / tmp, "fsync failed");
-  if (::close(fd) != 0 && status.ok()) status = Errno(dir / tmp, "close failed");
-  if (!status.ok()) {
-    ::unlinkat(dir_fd, tmp.c_str(), 0);
-    return status;
-  }
-  if (overwrite) {
-    if (::renameat(dir_fd, tmp.c_str(), dir_fd, name.c_str()) != 0) {
-      Error e = Errno(path, "rename failed");
-      ::unlinkat(dir_fd, tmp.c_str(), 0);
-      return e;
-    }
-  } else {
-    // linkat() fails if the target exists: no window in which an existing file is replaced.
-    if (::linkat(dir_fd, tmp.c_str(), dir_fd, name.c_str(), 0) != 0) {
-      Error e = errno == EEXIST
-                    ? MakeError(ErrorCode::kIo, path.string(), "refusing to overwrite an existing file")
-                    : Errno(path, "link failed");
-      ::unlinkat(dir_fd, tmp.c_str(), 0);
-      return e;
-    }
-    ::unlinkat(dir_fd, tmp.c_str(), 0);
-  }
-  if (::fsync(dir_fd) != 0) return Errno(dir, "fsync of folder failed");
-  return Ok();
+  if (overwrite && ::fstatat(dir_fd, name.c_str(), &st, AT_SYMLINK_NOFOLLOW) == 0 &&
+      !S_ISREG(st.st_mode))
+    return LinkRefused(dir / name);
+  return WriteFileAtomicAt(dir_fd, dir, name, bytes, overwrite);
 }
 
 // Reads a whole open file, at most `limit` bytes.
@@ -201,25 +162,6 @@ uint32_t Crc32(std::span<const uint8_t> bytes) {
     off += n;
   }
   return static_cast<uint32_t>(crc);
-}
-
-Status FsyncDirectory(const fs::path& dir) {
-  int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) return Errno(dir, "cannot open folder to sync");
-  int rc = ::fsync(fd);
-  ::close(fd);
-  if (rc != 0) return Errno(dir, "fsync of folder failed");
-  return Ok();
-}
-
-Status WriteFileAtomic(const fs::path& path, std::span<const uint8_t> bytes, bool overwrite) {
-  fs::path dir = path.parent_path().empty() ? fs::path(".") : path.parent_path();
-  std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec) return MakeError(ErrorCode::kIo, dir.string(), "cannot create folder: {}", ec.message());
-  Fd dir_fd(::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
-  if (dir_fd.fd < 0) return Errno(dir, "cannot open folder");
-  return WriteAtomicAt(dir_fd.fd, dir, path.filename().string(), bytes, overwrite);
 }
 
 Status WriteSessionFile(const fs::path& root, const std::string& rel,
@@ -267,12 +209,6 @@ Status CheckSessionTree(const fs::path& root) {
          it.increment(ec))
       RIG_TRY(check(it->path(), true));
   return Ok();
-}
-
-Status WriteFileAtomic(const fs::path& path, const std::string& text, bool overwrite) {
-  return WriteFileAtomic(
-      path, std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(text.data()), text.size()),
-      overwrite);
 }
 
 Result<std::vector<uint8_t>> ReadFileBytes(const fs::path& path) {
@@ -490,8 +426,7 @@ Result<Session> Session::OpenExisting(const fs::path& dir) {
   for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::recursive_directory_iterator();
        it.increment(ec)) {
     const std::string name = it->path().filename().string();
-    if (name.size() > 1 && name[0] == '.' && name.find(".tmp") != std::string::npos &&
-        it->is_regular_file(ec) && !it->is_symlink(ec)) {
+    if (IsWriterTemporaryName(name) && it->is_regular_file(ec) && !it->is_symlink(ec)) {
       std::error_code rm;
       if (fs::remove(it->path(), rm)) ++stale;
     }

@@ -16,6 +16,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "config/atomic_file.h"
 #include "config/config.h"
 #include "config/settings.h"
 #include "capture/session/journal_reader.h"
@@ -28,13 +29,7 @@ namespace fs = std::filesystem;
 // CRC-32 (zlib) of a byte string: the journal's checksum of every stored file.
 uint32_t Crc32(std::span<const uint8_t> bytes);
 
-// Writes `bytes` to `path` so that the final name only ever shows a complete file:
-// temporary file in the same folder, write, fsync, rename, fsync of the folder.
-// With `overwrite` false an existing file is never replaced (kIo error instead).
-Status WriteFileAtomic(const fs::path& path, std::span<const uint8_t> bytes,
-                       bool overwrite = true);
-Status WriteFileAtomic(const fs::path& path, const std::string& text, bool overwrite = true);
-Status FsyncDirectory(const fs::path& dir);
+// WriteFileAtomic and FsyncDirectory: config/atomic_file.h, the project's one writer.
 Result<std::vector<uint8_t>> ReadFileBytes(const fs::path& path);
 
 // The same inside a session folder, never through a symbolic link: `rel` (checked by

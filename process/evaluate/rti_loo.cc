@@ -1,5 +1,7 @@
 // Leave-one-out of every family on a multi-light capture, refitting without each image.
 #include "process/evaluate/rti_loo.h"
+#include "config/atomic_file.h"
+#include "process/io/image_io.h"
 
 #include <chrono>
 #include <cmath>
@@ -309,7 +311,7 @@ Status WriteRtiLooCharts(const std::vector<RtiLooRow>& rows, const std::string& 
     po.notes = {"grey squares: relight-cli's published figures on the same capture"};
     const cv::Mat img = DrawPlot(series, markers, po);
     const std::string path = prefix + (chart == 0 ? "-psnr-bytes.png" : "-psnr-time.png");
-    if (!cv::imwrite(path, img)) return MakeError(ErrorCode::kIo, path, "cannot write the chart");
+    RIG_TRY(WriteImageFile(path, img));
   }
   return Ok();
 }
@@ -323,10 +325,7 @@ Result<std::vector<RtiLooRow>> WriteRtiLooReport(
       capture.samples.height == 395) {
     for (auto& r : RelightPublishedIconRows()) rows.push_back(r);
   }
-  std::ofstream f(markdown_path);
-  f << RtiLooMarkdown(capture, rows);
-  f.flush();
-  if (!f) return MakeError(ErrorCode::kIo, markdown_path, "cannot write");
+  RIG_TRY(WriteFileAtomic(markdown_path, RtiLooMarkdown(capture, rows)));
   const fs::path p(markdown_path);
   RIG_TRY(WriteRtiLooCharts(rows, (p.parent_path() / p.stem()).string()));
   return rows;

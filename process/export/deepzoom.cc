@@ -1,6 +1,7 @@
 // Deep-zoom pyramids: each plane file decoded once, halved level by level, tiles encoded in
 // memory and written without a per-tile fsync; files in parallel.
 #include "process/export/deepzoom.h"
+#include "config/atomic_file.h"
 
 #include <algorithm>
 #include <atomic>
@@ -22,12 +23,11 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// A tile or descriptor: not fsync'd one by one (a level holds thousands); the folder they are
+// in is published whole (rig view, rig export --format relight).
 Status WriteBytes(const fs::path& path, const std::vector<uint8_t>& bytes) {
-  std::ofstream f(path, std::ios::binary | std::ios::trunc);
-  if (!f) return MakeError(ErrorCode::kIo, path.string(), "cannot create");
-  f.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
-  if (!f) return MakeError(ErrorCode::kIo, path.string(), "write failed");
-  return Ok();
+  return WriteFileAtomic(path, std::span<const uint8_t>(bytes.data(), bytes.size()),
+                         /*overwrite=*/true, /*sync=*/false);
 }
 
 // The 2×2 box average, rounded; an odd last row/column averages what there is.

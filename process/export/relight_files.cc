@@ -1,6 +1,7 @@
 // relight's web format, .ptm and .rti: the writers choose scale/bias, the readers bound every
 // size by the file's own length before allocating.
 #include "process/export/relight_files.h"
+#include "config/atomic_file.h"
 
 #include <algorithm>
 #include <cerrno>
@@ -17,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "process/io/jpeg_io.h"
+#include "process/io/model_limits.h"
 
 namespace rig {
 namespace {
@@ -68,25 +70,51 @@ Status CheckFinite(const RelightCoefficients& c, const std::string& path) {
   return Ok();
 }
 
+// A plane file at least as large as a JPEG of width×height can be (model_limits.h).
+Status CheckPlaneFileSize(const std::string& plane, int width, int height) {
+  std::error_code ec;
+  const auto st = fs::status(plane, ec);
+  if (ec || !fs::exists(st)) return MakeError(ErrorCode::kNotFound, plane, "no such file");
+  if (!fs::is_regular_file(st)) return MakeError(ErrorCode::kInvalidInput, plane, "not a file");
+  const uint64_t bytes = fs::file_size(plane, ec);
+  if (ec) return MakeError(ErrorCode::kIo, plane, "cannot stat: {}", ec.message());
+  if (bytes < MinJpegBytes(width, height)) {
+    return MakeError(ErrorCode::kInvalidInput, plane,
+                     "{} bytes cannot hold a {}x{} JPEG (at least {}): the size declared is not the file's",
+                     bytes, width, height, MinJpegBytes(width, height));
+  }
+  return Ok();
+}
+
+// The plane files plane_0 .. plane_{files-1}.jpg, each checked against width×height (byte
+// count, then header) and opened.
+Result<std::vector<std::unique_ptr<JpegReader>>> OpenPlanes(const std::string& folder, int files,
+                                                            int width, int height) {
+  std::vector<std::unique_ptr<JpegReader>> readers;
+  for (int j = 0; j < files; ++j) {
+    const std::string plane = (fs::path(folder) / fmt::format("plane_{}.jpg", j)).string();
+    RIG_TRY(CheckPlaneFileSize(plane, width, height));
+    RIG_ASSIGN_OR_RETURN(auto reader, JpegReader::Open(plane));
+    if (reader->width() != width || reader->height() != height || reader->channels() != 3) {
+      return MakeError(ErrorCode::kInvalidInput, plane, "{}x{}x{}, info.json says {}x{}x3",
+                       reader->width(), reader->height(), reader->channels(), width, height);
+    }
+    readers.push_back(std::move(reader));
+  }
+  return readers;
+}
+
 uint8_t ToByte(double v) {
   return static_cast<uint8_t>(std::clamp(std::nearbyint(v), 0.0, 255.0));
 }
 
+// The header and the data through the project's one writer (config/atomic_file.h).
 Status WriteFile(const std::string& path, const std::string& header,
                  const std::vector<uint8_t>& data) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    if (!f) return MakeError(ErrorCode::kIo, tmp, "cannot create");
-    f.write(header.data(), static_cast<std::streamsize>(header.size()));
-    f.write(reinterpret_cast<const char*>(data.data()), static_cast<std::streamsize>(data.size()));
-    f.flush();
-    if (!f) return MakeError(ErrorCode::kIo, tmp, "write failed");
-  }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) return MakeError(ErrorCode::kIo, path, "cannot rename from {}: {}", tmp, ec.message());
-  return Ok();
+  RIG_ASSIGN_OR_RETURN(AtomicFile f, AtomicFile::Create(path));
+  RIG_TRY(f.Write(header));
+  RIG_TRY(f.Write(data.data(), data.size()));
+  return f.Commit();
 }
 
 // A binary file read as header lines, then a bounded binary tail.
@@ -278,6 +306,26 @@ Status WriteRelightWeb(const std::string& folder, const RelightCoefficients& c,
   return WriteFile((fs::path(folder) / "info.json").string(), text, {});
 }
 
+Result<std::vector<std::string>> DeclaredWebFiles(const std::string& folder) {
+  const std::string path = (fs::path(folder) / "info.json").string();
+  std::ifstream f(path);
+  if (!f) return MakeError(ErrorCode::kNotFound, path, "cannot open");
+  nlohmann::json info;
+  try {
+    info = nlohmann::json::parse(f);
+  } catch (const nlohmann::json::exception& e) {
+    return MakeError(ErrorCode::kInvalidInput, path, "not JSON: {}", e.what());
+  }
+  if (!info.is_object() || !info.contains("nplanes") || !info["nplanes"].is_number_integer())
+    return MakeError(ErrorCode::kInvalidInput, path, "nplanes: missing or not an integer");
+  const int64_t nplanes = info["nplanes"].get<int64_t>();
+  if (nplanes < 1 || nplanes > 256)
+    return MakeError(ErrorCode::kInvalidInput, path, "nplanes: {} is outside 1..256", nplanes);
+  std::vector<std::string> names = {"info.json"};
+  for (int64_t j = 0; 3 * j < nplanes; ++j) names.push_back(fmt::format("plane_{}.jpg", j));
+  return names;
+}
+
 std::string RelightWebType(const std::string& folder) {
   std::ifstream f(fs::path(folder) / "info.json");
   if (!f) return "";
@@ -382,7 +430,12 @@ Result<RelightCoefficients> ReadRelightWebImpl(const std::string& folder, bool r
                          v.dump());
       }
       out->push_back(v.get<double>());
+      RIG_TRY(CheckFloatValue(out->back(), path, fmt::format("materials[0].{}[{}]", name, out->size() - 1)));
     }
+  }
+  for (int64_t p = 0; p < nplanes; ++p) {  // 255·(byte/255 − bias)·scale, every value a float
+    RIG_TRY(CheckDequantisation(scale[p], -255.0 * bias[p] * scale[p], path,
+                                fmt::format("materials[0].scale[{}], bias[{}]", p, p)));
   }
   if (info.contains("lights")) {
     const auto& l = info["lights"];
@@ -395,19 +448,16 @@ Result<RelightCoefficients> ReadRelightWebImpl(const std::string& folder, bool r
       c.lights.push_back({l[i].get<double>(), l[i + 1].get<double>(), l[i + 2].get<double>()});
     }
   }
-  if (read_planes) {
-    for (int j = 0; j < c.terms; ++j)
-      c.planes.emplace_back(c.height, c.width, c.lrgb ? CV_32FC1 : CV_32FC3);
-    if (c.lrgb) c.albedo.create(c.height, c.width, CV_32FC3);
-  }
+  // Every plane's header and size against what info.json declares before anything is
+  // allocated for the planes.
+  RIG_ASSIGN_OR_RETURN(auto readers, OpenPlanes(folder, static_cast<int>((nplanes + 2) / 3), c.width, c.height));
+  if (!read_planes) return c;
+  for (int j = 0; j < c.terms; ++j)
+    c.planes.emplace_back(c.height, c.width, c.lrgb ? CV_32FC1 : CV_32FC3);
+  if (c.lrgb) c.albedo.create(c.height, c.width, CV_32FC3);
   for (int j = 0; 3 * j < nplanes; ++j) {
     const std::string plane = (fs::path(folder) / fmt::format("plane_{}.jpg", j)).string();
-    RIG_ASSIGN_OR_RETURN(auto reader, JpegReader::Open(plane));
-    if (reader->width() != c.width || reader->height() != c.height || reader->channels() != 3) {
-      return MakeError(ErrorCode::kInvalidInput, plane, "{}x{}x{}, info.json says {}x{}x3",
-                       reader->width(), reader->height(), reader->channels(), c.width, c.height);
-    }
-    if (!read_planes) continue;
+    JpegReader* reader = readers[j].get();
     cv::Mat rgb;
     RIG_TRY(reader->Read(c.height, &rgb));
     for (int k = 0; k < 3 && 3 * j + k < nplanes; ++k) {
@@ -525,6 +575,12 @@ Result<RelightCoefficients> ReadPtm(const std::string& path) {
   RIG_ASSIGN_OR_RETURN(std::vector<double> scale, Numbers(sline, 6, path, "scale"));
   RIG_ASSIGN_OR_RETURN(std::string bline, f.Line("bias"));
   RIG_ASSIGN_OR_RETURN(std::vector<double> bias, Numbers(bline, 6, path, "bias"));
+  for (int fi = 0; fi < 6; ++fi) {  // (byte − bias)·scale, every value a float
+    RIG_TRY(CheckFloatValue(scale[fi], path, fmt::format("scale {}", fi)));
+    RIG_TRY(CheckFloatValue(bias[fi], path, fmt::format("bias {}", fi)));
+    RIG_TRY(CheckDequantisation(scale[fi], -bias[fi] * scale[fi], path,
+                                fmt::format("scale/bias {}", fi)));
+  }
 
   const uint64_t n = static_cast<uint64_t>(width) * height;
   const uint64_t need = n * (c.lrgb ? 9 : 18);
@@ -672,11 +728,11 @@ Result<RelightCoefficients> ReadRti(const std::string& path) {
   for (auto& s : scale) s = get_float();
   for (auto& b : bias) b = get_float();
   for (int j = 0; j < terms; ++j) {
-    if (!std::isfinite(scale[j]) || !std::isfinite(bias[j])) {
-      return MakeError(ErrorCode::kInvalidInput, path, "scale/bias of term {}: not finite", j);
-    }
-    c.planes.emplace_back(height, width, CV_32FC3);
+    // byte·scale + 255·bias, every value a float.
+    RIG_TRY(CheckDequantisation(scale[j], 255.0 * double(bias[j]), path,
+                                fmt::format("scale/bias of term {}", j)));
   }
+  for (int j = 0; j < terms; ++j) c.planes.emplace_back(height, width, CV_32FC3);
   for (int y = 0; y < height; ++y)
     for (int x = 0; x < width; ++x)
       for (int k = 0; k < 3; ++k)

@@ -35,6 +35,11 @@ Result<RelightCoefficients> ReadRelightWeb(const std::string& folder);
 // The same checks of info.json and of every plane file's header (size, channels), without
 // decoding the planes: `planes` and `albedo` are left empty.
 Result<RelightCoefficients> ReadRelightWebInfo(const std::string& folder);
+// What a web-format folder declares, and only that: info.json and plane_0.jpg ..
+// plane_{ceil(nplanes/3)-1}.jpg, nplanes read from its info.json (an integer 1..256, else an
+// error naming the file and the field). Planes past them, and any other file, are not the
+// model's: publishing (rig view, rig export --format relight) copies these names only.
+Result<std::vector<std::string>> DeclaredWebFiles(const std::string& folder);
 // The "type" of a web-format folder's info.json ("" when it cannot be read).
 std::string RelightWebType(const std::string& folder);
 

@@ -1,5 +1,6 @@
 // The page's files and data.js.
 #include "process/export/viewer_page.h"
+#include "config/atomic_file.h"
 
 #include <filesystem>
 #include <fstream>
@@ -40,12 +41,9 @@ Result<std::string> ReadAll(const fs::path& path) {
 
 Status WriteText(const fs::path& path, const std::string& text) {
   std::error_code ec;
-  if (fs::exists(path, ec)) return MakeError(ErrorCode::kInvalidInput, path.string(), "exists (nothing is overwritten)");
-  std::ofstream f(path, std::ios::binary);
-  if (!f) return MakeError(ErrorCode::kIo, path.string(), "cannot create");
-  f << text;
-  if (!f) return MakeError(ErrorCode::kIo, path.string(), "write failed");
-  return Ok();
+  if (fs::exists(fs::symlink_status(path, ec)))
+    return MakeError(ErrorCode::kInvalidInput, path.string(), "exists (nothing is overwritten)");
+  return WriteFileAtomic(path, text, /*overwrite=*/false, /*sync=*/false);
 }
 
 }  // namespace

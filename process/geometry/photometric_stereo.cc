@@ -306,7 +306,7 @@ cv::Mat AlbedoPng(const PsResult& ps) {
 }
 Status WritePng(const std::string& path, const cv::Mat& img) {
   try {
-    if (!cv::imwrite(path, img)) return MakeError(ErrorCode::kIo, path, "cannot write the PNG");
+    RIG_TRY(WriteImageFile(path, img));
   } catch (const cv::Exception& e) {
     return MakeError(ErrorCode::kIo, path, "cannot write the PNG: {}", e.what());
   }

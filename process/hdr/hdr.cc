@@ -1,5 +1,6 @@
 // Debevec-Malik response recovery (Schur-reduced normal equations) and the table-driven merge.
 #include "process/hdr/hdr.h"
+#include "config/atomic_file.h"
 
 #include <algorithm>
 #include <cinttypes>
@@ -338,22 +339,7 @@ std::string FormatExposures(std::span<const LdrFrame> frames) {
 }
 
 Status WriteTextAtomically(const std::string& path, const std::string& text) {
-  const fs::path p(path);
-  const fs::path tmp = p.parent_path() / ("." + p.filename().string() + ".tmp");
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) return MakeError(ErrorCode::kIo, path, "cannot create {}", tmp.string());
-    out << text;
-    out.flush();
-    if (!out) return MakeError(ErrorCode::kIo, path, "write failed");
-  }
-  std::error_code ec;
-  fs::rename(tmp, p, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    return MakeError(ErrorCode::kIo, path, "cannot move the written file into place");
-  }
-  return Ok();
+  return WriteFileAtomic(path, text);
 }
 
 }  // namespace

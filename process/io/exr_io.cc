@@ -1,5 +1,6 @@
 // OpenEXR reading and writing (named float channels + string header attributes), atomic writes.
 #include "process/io/exr_io.h"
+#include "process/io/exr_ostream.h"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -25,6 +26,22 @@
 #include <ImfThreading.h>
 
 namespace rig {
+
+AtomicExrStream::AtomicExrStream(AtomicFile file)
+    : Imf::OStream(file.path().c_str()), file_(std::move(file)) {}
+
+void AtomicExrStream::write(const char c[], int n) {
+  Status st = file_.Write(c, static_cast<size_t>(n));
+  if (!st.ok()) throw Iex::IoExc(st.error().ToString());
+}
+
+uint64_t AtomicExrStream::tellp() { return file_.Tell(); }
+
+void AtomicExrStream::seekp(uint64_t pos) {
+  Status st = file_.Seek(pos);
+  if (!st.ok()) throw Iex::IoExc(st.error().ToString());
+}
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -38,22 +55,6 @@ bool IsStandardAttribute(const std::string& name) {
     if (name == s) return true;
   }
   return false;
-}
-
-std::string TempPathFor(const std::string& path) {
-  static std::atomic<unsigned> counter{0};
-  fs::path p(path);
-  std::string name = "." + p.filename().string() + ".tmp." + std::to_string(::getpid()) + "." +
-                     std::to_string(counter.fetch_add(1));
-  return (p.parent_path() / name).string();
-}
-
-// Flushes a finished file to disk so that the rename publishes complete contents.
-void SyncFile(const std::string& path) {
-  int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) return;
-  ::fsync(fd);
-  ::close(fd);
 }
 
 // The OpenEXR global thread pool: OpenEXR uses it for line-block (de)compression. Setting it
@@ -189,14 +190,8 @@ Status WriteExrStriped(const std::string& path, int width, int height,
   if (channel_names.empty()) {
     return MakeError(ErrorCode::kInvalidInput, path, "no channels to write");
   }
-  const std::string tmp = TempPathFor(path);
-  {
-    // The folder is made when missing (a removed hdr/ is how a re-merge is forced).
-    const fs::path dir = fs::path(path).parent_path();
-    std::error_code ec;
-    if (!dir.empty()) fs::create_directories(dir, ec);
-    if (ec) return MakeError(ErrorCode::kIo, path, "cannot create folder {}: {}", dir.string(), ec.message());
-  }
+  // The folder is made when missing (a removed hdr/ is how a re-merge is forced).
+  RIG_ASSIGN_OR_RETURN(AtomicFile file, AtomicFile::Create(path));
   try {
     threads = std::max(threads, 1);
     EnsureGlobalThreads(threads);
@@ -227,8 +222,9 @@ Status WriteExrStriped(const std::string& path, int width, int height,
     if (type == ExrPixelType::kHalf) stripe_h.create(kStripe, row, CV_16F);
     const cv::Mat& buffer = type == ExrPixelType::kHalf ? stripe_h : stripe_f;
     const size_t elem = buffer.elemSize();
+    AtomicExrStream stream(std::move(file));
     {
-      Imf::OutputFile out(tmp.c_str(), header, threads);
+      Imf::OutputFile out(stream, header, threads);
       for (int y0 = 0; y0 < height; y0 += kStripe) {
         const int y1 = std::min(height, y0 + kStripe);
         fill(y0, y1, stripe_f.ptr<float>());
@@ -247,21 +243,10 @@ Status WriteExrStriped(const std::string& path, int width, int height,
         out.writePixels(y1 - y0);
       }
     }
-    SyncFile(tmp);
-    std::error_code ec;
-    fs::rename(tmp, path, ec);
-    if (ec) {
-      fs::remove(tmp, ec);
-      return MakeError(ErrorCode::kIo, path, "cannot move the written file into place: {}",
-                       ec.message());
-    }
+    RIG_TRY(stream.Commit());
   } catch (const Iex::BaseExc& e) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
     return MakeError(ErrorCode::kIo, path, "cannot write EXR: {}", e.what());
   } catch (const std::exception& e) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
     return MakeError(ErrorCode::kIo, path, "cannot write EXR: {}", e.what());
   }
   return Ok();

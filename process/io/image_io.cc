@@ -17,6 +17,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "config/atomic_file.h"
+
 namespace rig {
 namespace {
 
@@ -111,6 +113,19 @@ void ParallelFor(int n, int threads, const std::function<void(int, int)>& fn, in
   for (int t = 1; t < threads; ++t) pool.emplace_back(work);
   work();
   for (auto& t : pool) t.join();
+}
+
+Status WriteImageFile(const std::string& path, const cv::Mat& image, const std::vector<int>& params) {
+  const std::string ext = fs::path(path).extension().string();
+  if (ext.empty()) return MakeError(ErrorCode::kInvalidInput, path, "no extension to choose the format");
+  std::vector<uchar> bytes;
+  try {
+    if (!cv::imencode(ext, image, bytes, params))
+      return MakeError(ErrorCode::kIo, path, "cannot encode the picture as {}", ext);
+  } catch (const cv::Exception& e) {
+    return MakeError(ErrorCode::kIo, path, "cannot encode the picture as {}: {}", ext, e.what());
+  }
+  return WriteFileAtomic(path, std::span<const uint8_t>(bytes.data(), bytes.size()));
 }
 
 Result<cv::Mat> DecodeImage(const std::string& path) {

@@ -28,6 +28,12 @@ Result<cv::Mat> DecodeImage(const std::string& path);
 // The same from the file's bytes already in memory; `path` names it in errors.
 Result<cv::Mat> DecodeImageBytes(const std::vector<uchar>& bytes, const std::string& path);
 
+// Writes `image` to `path` as cv::imwrite would (the format from the extension, `params` as
+// imwrite's), encoded in memory (cv::imencode) and written by the project's one writer
+// (config/atomic_file.h): never through a link, never half a file. Errors name the file.
+Status WriteImageFile(const std::string& path, const cv::Mat& image,
+                      const std::vector<int>& params = {});
+
 // Decodes files[i] into frame i, `threads` files at a time. The first error (in file order)
 // is returned; it names the file.
 Result<Bracket> DecodeFrames(const std::vector<std::string>& files,

@@ -3,6 +3,7 @@
 #include "process/io/jpeg_io.h"
 
 #include <csetjmp>
+#include <optional>
 #include <cstdlib>
 #include <cstring>
 #include <vector>
@@ -11,6 +12,8 @@
 #include <unistd.h>
 
 #include <fmt/format.h>
+
+#include "config/atomic_file.h"
 
 extern "C" {
 #include <jerror.h>
@@ -44,10 +47,37 @@ void OnMessage(j_common_ptr cinfo, int level) {
 void SetUp(jpeg_compress_struct* cinfo, int width, int height, int channels, JpegColor color,
            int quality);
 
+// libjpeg's output into the project's writer (config/atomic_file.h): a temporary with a fresh
+// name, moved over the target when finished. A failed write is kept and reported by Finish.
+struct AtomicDestination {
+  jpeg_destination_mgr pub{};
+  AtomicFile* file = nullptr;
+  Status status = Ok();
+  std::vector<JOCTET> buffer = std::vector<JOCTET>(size_t{1} << 16);
+
+  static void Init(j_compress_ptr cinfo) {
+    auto* d = reinterpret_cast<AtomicDestination*>(cinfo->dest);
+    d->pub.next_output_byte = d->buffer.data();
+    d->pub.free_in_buffer = d->buffer.size();
+  }
+  static boolean Empty(j_compress_ptr cinfo) {
+    auto* d = reinterpret_cast<AtomicDestination*>(cinfo->dest);
+    if (d->status.ok()) d->status = d->file->Write(d->buffer.data(), d->buffer.size());
+    Init(cinfo);
+    return TRUE;
+  }
+  static void Term(j_compress_ptr cinfo) {
+    auto* d = reinterpret_cast<AtomicDestination*>(cinfo->dest);
+    const size_t n = d->buffer.size() - d->pub.free_in_buffer;
+    if (d->status.ok() && n > 0) d->status = d->file->Write(d->buffer.data(), n);
+  }
+};
+
 struct JpegWriter::State {
   jpeg_compress_struct cinfo{};
   ErrorManager err;
-  FILE* file = nullptr;
+  std::optional<AtomicFile> file;
+  AtomicDestination dest;
   std::string path;
   int width = 0, height = 0, channels = 0, written = 0;
   bool started = false;
@@ -56,7 +86,6 @@ struct JpegWriter::State {
 JpegWriter::~JpegWriter() {
   if (!state_) return;
   if (state_->started) jpeg_destroy_compress(&state_->cinfo);
-  if (state_->file) std::fclose(state_->file);
 }
 
 Result<std::unique_ptr<JpegWriter>> JpegWriter::Open(const std::string& path, int width,
@@ -77,8 +106,12 @@ Result<std::unique_ptr<JpegWriter>> JpegWriter::Open(const std::string& path, in
   s.width = width;
   s.height = height;
   s.channels = channels;
-  s.file = std::fopen(path.c_str(), "wb");
-  if (!s.file) return MakeError(ErrorCode::kIo, path, "cannot create: {}", std::strerror(errno));
+  RIG_ASSIGN_OR_RETURN(AtomicFile file, AtomicFile::Create(path));
+  s.file.emplace(std::move(file));
+  s.dest.file = &*s.file;
+  s.dest.pub.init_destination = AtomicDestination::Init;
+  s.dest.pub.empty_output_buffer = AtomicDestination::Empty;
+  s.dest.pub.term_destination = AtomicDestination::Term;
   s.cinfo.err = jpeg_std_error(&s.err.pub);
   s.err.pub.error_exit = OnError;
   s.err.pub.emit_message = OnMessage;
@@ -87,7 +120,7 @@ Result<std::unique_ptr<JpegWriter>> JpegWriter::Open(const std::string& path, in
   }
   jpeg_create_compress(&s.cinfo);
   s.started = true;
-  jpeg_stdio_dest(&s.cinfo, s.file);
+  s.cinfo.dest = &s.dest.pub;
   SetUp(&s.cinfo, width, height, channels, color, quality);
   jpeg_start_compress(&s.cinfo, TRUE);
   return w;
@@ -119,13 +152,10 @@ Status JpegWriter::Finish() {
   jpeg_finish_compress(&s.cinfo);
   jpeg_destroy_compress(&s.cinfo);
   s.started = false;
-  const bool flushed = std::fflush(s.file) == 0 && ::fsync(fileno(s.file)) == 0;
-  const bool closed = std::fclose(s.file) == 0;
-  s.file = nullptr;
-  if (!flushed || !closed) {
-    return MakeError(ErrorCode::kIo, s.path, "cannot write: {}", std::strerror(errno));
-  }
-  return Ok();
+  RIG_TRY(s.dest.status);
+  Status st = s.file->Commit();
+  s.file.reset();
+  return st;
 }
 
 Status WriteJpeg(const std::string& path, const cv::Mat& image, JpegColor color, int quality) {
@@ -252,7 +282,6 @@ struct JpegReader::State {
 JpegReader::~JpegReader() {
   if (!state_) return;
   if (state_->started) jpeg_destroy_decompress(&state_->cinfo);
-  if (state_->file) std::fclose(state_->file);
 }
 
 Result<std::unique_ptr<JpegReader>> JpegReader::Open(const std::string& path) {

@@ -22,8 +22,9 @@ enum class JpegColor {
   kGray,   // one plane
 };
 
-// Writes rows top to bottom. Not thread-safe; one writer per file. The file is written to
-// `path` directly (callers that need atomic replacement write to a temporary name).
+// Writes rows top to bottom. Not thread-safe; one writer per file. The file is written through
+// AtomicFile (config/atomic_file.h): `path` shows the old file until Finish() moves the new one
+// over it (a link at `path` is replaced, never followed); abandoned, nothing is left.
 class JpegWriter {
  public:
   ~JpegWriter();

@@ -1,5 +1,6 @@
 // Relighting: lamps summed in linear radiance, sweeps, the region check, pictures and video.
 #include "process/render/relight.h"
+#include "process/io/image_io.h"
 
 #include "process/model/harmonic/fit.h"
 
@@ -7,12 +8,14 @@
 #include <cmath>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <system_error>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
+#include "config/atomic_file.h"
 #include "config/log.h"
 #include "process/io/exr_io.h"
 #include "process/model/light_direction.h"
@@ -70,7 +73,7 @@ Status CheckLamp(const std::string& outside, const RelightRequest& request) {
 
 Status WritePicture(const std::string& path, const cv::Mat& bgr8) {
   try {
-    if (!cv::imwrite(path, bgr8)) return MakeError(ErrorCode::kIo, path, "cannot write the picture");
+    RIG_TRY(WriteImageFile(path, bgr8));
   } catch (const cv::Exception& e) {
     return MakeError(ErrorCode::kIo, path, "cannot write the picture: {}", e.what());
   }
@@ -337,6 +340,12 @@ Result<RenderFiles> WriteRender(const RenderOutput& output, const RelightRequest
   fs::create_directories(files.frame_dir, ec);
   if (ec) return MakeError(ErrorCode::kIo, files.frame_dir, "{}", ec.message());
   cv::VideoWriter video;
+  // OpenCV opens the video by name: written in a private folder, then moved over --out.
+  std::optional<StagedFile> staged;
+  if (files.video) {
+    RIG_ASSIGN_OR_RETURN(StagedFile s, StagedFile::Begin(out));
+    staged.emplace(std::move(s));
+  }
   for (size_t i = 0; i < output.radiance.size(); ++i) {
     const fs::path frame =
         fs::path(files.frame_dir) / fmt::format("frame_{:04d}{}", i, to_exr ? ".exr" : ".png");
@@ -351,7 +360,7 @@ Result<RenderFiles> WriteRender(const RenderOutput& output, const RelightRequest
       if (st.ok() && files.video) {
         try {
           if (!video.isOpened()) {
-            video.open(out, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), fps, pic->size());
+            video.open(staged->file().string(), cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), fps, pic->size());
             if (!video.isOpened()) st = MakeError(ErrorCode::kIo, out, "cannot open a Motion JPEG video writer");
           }
           if (st.ok()) video.write(*pic);
@@ -364,6 +373,7 @@ Result<RenderFiles> WriteRender(const RenderOutput& output, const RelightRequest
     ++files.frames;
   }
   video.release();
+  if (staged) RIG_TRY(staged->Publish());
   return files;
 }
 

@@ -16,6 +16,8 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "capture/plan/pose.h"
+#include "config/atomic_file.h"
+#include "process/io/image_io.h"
 #include "capture/session/render_source.h"
 #include "capture/session/session_store.h"
 #include "process/io/exr_io.h"
@@ -138,13 +140,7 @@ int ExportSessionLp(const ExportArgs& a) {
       o[k] = static_cast<uint8_t>(std::lround(255.0f * SrgbEncode(std::clamp(in[k] / white, 0.0f, 1.0f))));
     const std::string name = poses[i].second.Name() + ".png";
     const std::string path = (fs::path(a.out) / name).string();
-    try {
-      if (!cv::imwrite(path, out)) {
-        return ReportError("export", MakeError(ErrorCode::kIo, path, "cannot write"));
-      }
-    } catch (const cv::Exception& e) {
-      return ReportError("export", MakeError(ErrorCode::kIo, path, "cannot write: {}", e.what()));
-    }
+    if (Status st = WriteImageFile(path, out); !st.ok()) return ReportError("export", st.error());
     names.push_back(name);
     dirs.push_back(LightDirection(poses[i].second.h_deg, poses[i].second.v_deg, frame));
   }
@@ -291,20 +287,12 @@ int RunExport(int argc, char** argv) {
     // not refitted onto a smaller basis.
     if (a.format == "relight" && model->family() == "pca-bilinear" && a.basis.empty()) {
       // Its files, byte for byte (saving again would compress the planes a second time).
-      std::error_code ec;
-      std::filesystem::create_directories(a.out, ec);
-      std::vector<std::string> names = {"info.json"};
-      for (int j = 0; std::filesystem::exists(std::filesystem::path(path) /
-                                             fmt::format("plane_{}.jpg", j));
-           ++j)
-        names.push_back(fmt::format("plane_{}.jpg", j));
-      for (const auto& n : names) {
-        std::filesystem::copy_file(std::filesystem::path(path) / n, std::filesystem::path(a.out) / n,
-                                   std::filesystem::copy_options::overwrite_existing, ec);
-        if (ec) {
-          return ReportError("export", MakeError(ErrorCode::kIo, (std::filesystem::path(a.out) / n).string(),
-                                                 "cannot write: {}", ec.message()));
-        }
+      // Only what info.json declares, each opened without following a link.
+      auto names = DeclaredWebFiles(path);
+      if (!names.ok()) return ReportError("export", names.error());
+      for (const auto& n : *names) {
+        Status st = CopyFileNoFollow(std::filesystem::path(path) / n, std::filesystem::path(a.out) / n);
+        if (!st.ok()) return ReportError("export", st.error());
       }
       std::printf("rig export: wrote %s (relight web format, bilinear mrgb, as the model is "
                   "stored: nothing refitted, nothing lost)\n  from %s: %s\n",

@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "config/config.h"
+#include "config/atomic_file.h"
 #include "config/log.h"
 #include "process/evaluate/rti_loo.h"
 #include "process/model/any/load_model.h"
@@ -130,8 +131,13 @@ int RunLpStreamed(const FitArgs& a, const std::vector<LpEntry>& entries, const R
   PcaStreamOptions so;
   so.lp = a.lp;
   const PcaChoiceOptions co = ChoiceOptionsOf(req);
-  auto fit = FitPcaStreaming(entries, co, a.out, so);
-  if (!fit.ok()) return ReportError("fit", fit.error());
+  Result<PcaStreamFit> fit = MakeError(ErrorCode::kInternal, a.out, "not fitted");
+  Status written = WriteModelFolder(a.out, [&](const std::string& dir) -> Status {
+    fit = FitPcaStreaming(entries, co, dir, so);
+    if (!fit.ok()) return fit.error();
+    return Ok();
+  });
+  if (!written.ok()) return ReportError("fit", written.error());
   if (!a.report.empty()) {
     std::string md = fmt::format(
         "# Model of {}\n\n{} images {}x{} (streamed); masked (at or below {} or at or above {} "
@@ -143,9 +149,7 @@ int RunLpStreamed(const FitArgs& a, const std::vector<LpEntry>& entries, const R
         100 * fit->pixels_with_masked, fit->choice.reason, fit->stats.masked_samples,
         fit->stats.refitted_pixels, PcaMaskModeName(co.base.mask));
     md += PcaChoiceMarkdown(fit->choice);
-    std::ofstream f(a.report);
-    f << md;
-    if (!f) return ReportError("fit", MakeError(ErrorCode::kIo, a.report, "cannot write"));
+    if (Status st = WriteFileAtomic(a.report, md); !st.ok()) return ReportError("fit", st.error());
   }
   const double bpp = static_cast<double>(ModelBytesOnDisk(a.out)) /
                      (static_cast<double>(fit->width) * fit->height);
@@ -262,12 +266,15 @@ int RunLp(FitArgs a, const Config& config) {
   if (streamed) return RunLpStreamed(a, entries, req, sample_bytes);
   auto fit = FitRti(*capture, req);
   if (!fit.ok()) return ReportError("fit", fit.error());
-  Status saved = fit->model->Save(a.out);
+  // A folder model is written whole (the old one or the new one, never a mix); an EXR through
+  // the one writer as it is.
+  const std::string fam = fit->model->family();
+  Status saved = fam == "pca-bilinear" || fam == "neural"
+                     ? WriteModelFolder(a.out, [&](const std::string& dir) { return fit->model->Save(dir); })
+                     : fit->model->Save(a.out);
   if (!saved.ok()) return ReportError("fit", saved.error());
   if (!a.report.empty()) {
-    std::ofstream f(a.report);
-    f << fit->report;
-    if (!f) return ReportError("fit", MakeError(ErrorCode::kIo, a.report, "cannot write"));
+    if (Status st = WriteFileAtomic(a.report, fit->report); !st.ok()) return ReportError("fit", st.error());
   }
   const double bpp = static_cast<double>(ModelBytesOnDisk(a.out)) /
                      static_cast<double>(capture->samples.pixels());
@@ -327,9 +334,7 @@ int RunFit(int argc, char** argv) {
   auto fit = FitMaps(req);
   if (!fit.ok()) return ReportError("fit", fit.error());
   if (!a.report.empty() && !fit->report.empty()) {
-    std::ofstream f(a.report);
-    f << fit->report;
-    if (!f) return ReportError("fit", MakeError(ErrorCode::kIo, a.report, "cannot write"));
+    if (Status st = WriteFileAtomic(a.report, fit->report); !st.ok()) return ReportError("fit", st.error());
   }
   std::printf("rig fit: %s\n", fit->summary.c_str());
   return 0;

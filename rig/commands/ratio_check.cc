@@ -6,6 +6,8 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "process/hdr/hdr.h"
+#include "config/atomic_file.h"
+#include "process/io/image_io.h"
 #include "process/io/image_io.h"
 #include "process/hdr/ratio_check.h"
 #include "rig/commands/command.h"
@@ -69,16 +71,10 @@ int RunRatioCheck(int argc, char** argv) {
   std::error_code ec;
   std::filesystem::create_directories(out, ec);
   const std::string csv = out + "/ratio_table.csv", png = out + "/ratio_plot.png";
-  std::ofstream(csv) << result->Csv();
-  bool written = false;
-  try {
-    written = cv::imwrite(png, PlotPixelRatios(*result));
-  } catch (const cv::Exception&) {
-    written = false;
-  }
-  if (!written || ec) {
-    return ReportError("ratio-check", MakeError(ErrorCode::kIo, out, "cannot write the results"));
-  }
+  if (ec) return ReportError("ratio-check", MakeError(ErrorCode::kIo, out, "cannot create: {}", ec.message()));
+  if (Status st = WriteFileAtomic(csv, result->Csv()); !st.ok()) return ReportError("ratio-check", st.error());
+  if (Status st = WriteImageFile(png, PlotPixelRatios(*result)); !st.ok())
+    return ReportError("ratio-check", st.error());
   std::printf("pixels %d,%d / %d,%d; merged radiance ratio %.4f\n%s", result->a.x, result->a.y,
               result->b.x, result->b.y, result->merged_ratio, result->Csv().c_str());
   std::printf("intensity ratio spread %.3fx, radiance ratio spread %.4fx; wrote %s, %s\n",

@@ -9,6 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "config/config.h"
+#include "process/io/image_io.h"
 #include "process/render/radiance_file.h"
 #include "process/io/exr_io.h"
 #include "process/render/tonemap.h"
@@ -105,13 +106,8 @@ int RunTonemap(int argc, char** argv) {
     std::printf("%s: %s %dx%d in %.1f ms: %s\n", a.in.c_str(), ToneMapMethodName(p.options.method),
                 radiance->cols, radiance->rows, p.ms, DescribeToneMapPanel(p).c_str());
   }
-  try {
-    if (!cv::imwrite(a.out, *result, {cv::IMWRITE_PNG_COMPRESSION, 9})) {
-      return ReportError("tonemap", MakeError(ErrorCode::kIo, a.out, "cannot write the picture"));
-    }
-  } catch (const cv::Exception& e) {
-    return ReportError("tonemap", MakeError(ErrorCode::kIo, a.out, "cannot write: {}", e.what()));
-  }
+  if (Status st = WriteImageFile(a.out, *result, {cv::IMWRITE_PNG_COMPRESSION, 9}); !st.ok())
+    return ReportError("tonemap", st.error());
   return 0;
 }
 

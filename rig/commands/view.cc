@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "capture/session/render_source.h"
+#include "config/atomic_file.h"
 #include "process/export/convert.h"
 #include "process/export/deepzoom.h"
 #include "process/export/load_any.h"
@@ -58,12 +59,9 @@ Vec3 MeanDirection(const std::vector<Vec3>& lights) {
   return {m[0] / n, m[1] / n, m[2] / n};
 }
 
-Status CopyFile(const fs::path& from, const fs::path& to) {
-  std::error_code ec;
-  fs::copy_file(from, to, fs::copy_options::none, ec);
-  if (ec) return MakeError(ErrorCode::kIo, to.string(), "cannot copy from {}: {}", from.string(), ec.message());
-  return Ok();
-}
+// A source file published: opened without following a link (a linked plane is refused,
+// naming it), never written through one.
+Status CopyFile(const fs::path& from, const fs::path& to) { return CopyFileNoFollow(from, to); }
 
 // Ward's global curve for the source's radiance at `light` (as `rig render` maps it), as a
 // table of pixel luminance (before the sRGB encoding) over ln L_w.
@@ -209,10 +207,10 @@ int RunView(int argc, char** argv) {
     }
     fs::create_directories(a.out, ec);
     if (ec) return ReportError("view", MakeError(ErrorCode::kIo, a.out, "cannot create: {}", ec.message()));
-    std::vector<std::string> names = {"info.json"};
-    for (int j = 0; fs::exists(fs::path(path) / fmt::format("plane_{}.jpg", j)); ++j)
-      names.push_back(fmt::format("plane_{}.jpg", j));
-    for (const auto& n : names)
+    // Only what info.json declares (a plane past them is no part of the model).
+    auto names = DeclaredWebFiles(path);
+    if (!names.ok()) return ReportError("view", names.error());
+    for (const auto& n : *names)
       if (Status st = CopyFile(fs::path(path) / n, fs::path(a.out) / n); !st.ok()) return ReportError("view", st.error());
     how = fmt::format("{} web format copied as it is (nothing refitted)", web_type);
   } else {
@@ -243,7 +241,7 @@ int RunView(int argc, char** argv) {
   // normals.png / albedo.png beside the model (rig normals writes them there).
   const fs::path beside = fs::is_directory(path, ec) ? fs::path(path) : fs::path(path).parent_path();
   for (const char* name : {"normals.png", "albedo.png"}) {
-    if (!fs::is_regular_file(beside / name, ec)) continue;
+    if (!fs::exists(fs::symlink_status(beside / name, ec))) continue;  // a link: refused by CopyFile
     if (Status st = CopyFile(beside / name, fs::path(a.out) / name); !st.ok()) return ReportError("view", st.error());
     page.images.push_back(name);
   }

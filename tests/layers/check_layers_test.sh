@@ -35,6 +35,10 @@ mk shared process/model/light_samples.cc '#include "process/model/neural/neural.
 expect "what the families share including a family" 1 'process/model/light_samples.cc:1: process/model includes' "$tmp/shared"
 mk across process/model/any/load_model.cc '#include "process/model/pca/pca.h"' '#include "process/model/harmonic/model.h"' '#include "process/model/samples.h"'
 expect "across families including families" 0 "every include points down" "$tmp/across"
+mk writer process/render/picture.cc '// a picture' '  cv::imwrite(path, img);'
+expect "a write around the one writer" 1 'process/render/picture.cc:2: writes a file around the one writer' "$tmp/writer"
+mk stream rig/commands/report.cc '  std::ofstream f(a.report);'
+expect "an ofstream to an output" 1 'rig/commands/report.cc:1: writes a file around' "$tmp/stream"
 mk down rig/main.cc '#include "sim/world.h"' '#include "capture/daemon/daemon.h"' '#include "config/log.h"'
 expect "downward includes" 0 "every include points down" "$tmp/down"
 

@@ -312,6 +312,11 @@ Result<Model> LoadModel(const std::string& path) {
       if (!ch) {
         return MakeError(ErrorCode::kInvalidInput, path, "model lacks channel '{}'", name);
       }
+      // A NaN or infinity renders as a black or white picture: refused, naming the channel.
+      if (!cv::checkRange(*ch)) {
+        return MakeError(ErrorCode::kInvalidInput, path,
+                         "channel '{}': a coefficient is not a finite value", name);
+      }
       planes[c] = *ch;
     }
     cv::Mat merged;

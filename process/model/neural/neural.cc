@@ -9,6 +9,8 @@
 // plane, not one for all planes (a plane with a small range keeps its 256 steps); the
 // decoder is fine-tuned on the stored codes, which NeuralRTI does not do.
 #include "process/model/neural/neural.h"
+#include "process/io/model_limits.h"
+#include "config/atomic_file.h"
 
 #include <algorithm>
 #include <cmath>
@@ -389,12 +391,7 @@ Result<std::vector<uint8_t>> ReadBytes(const std::string& path) {
   return bytes;
 }
 Status WriteBytes(const std::string& path, const void* data, size_t size) {
-  std::ofstream f(path, std::ios::binary | std::ios::trunc);
-  if (!f) return MakeError(ErrorCode::kIo, path, "cannot create");
-  f.write(static_cast<const char*>(data), static_cast<std::streamsize>(size));
-  f.close();
-  if (!f) return MakeError(ErrorCode::kIo, path, "write failed");
-  return Ok();
+  return WriteFileAtomic(path, std::span<const uint8_t>(static_cast<const uint8_t*>(data), size));
 }
 
 void PutFloatLe(float v, std::vector<uint8_t>* out) {
@@ -676,8 +673,13 @@ Result<NeuralModel> NeuralModel::Load(const std::string& folder) {
       return MakeError(ErrorCode::kCorrupt, json_path, "unknown code_format '{}'", fmt);
     m.format_ = fmt == "png" ? NeuralCodeFormat::kPng : NeuralCodeFormat::kJpeg;
     m.code_names_ = j.at("code_images").get<std::vector<std::string>>();
-    for (double v : j.at("scale").get<std::vector<double>>()) m.scale_.push_back(static_cast<float>(v));
-    for (double v : j.at("bias").get<std::vector<double>>()) m.bias_.push_back(static_cast<float>(v));
+    for (const char* field : {"scale", "bias"}) {
+      std::vector<float>& out = field[0] == 's' ? m.scale_ : m.bias_;
+      for (double v : j.at(field).get<std::vector<double>>()) {
+        RIG_TRY(CheckFloatValue(v, json_path, std::string(field) + "[" + std::to_string(out.size()) + "]"));
+        out.push_back(static_cast<float>(v));
+      }
+    }
     weights_name = j.at("decoder").at("file").get<std::string>();
     for (const auto& l : j.at("decoder").at("layers"))
       dims.emplace_back(l.at("in").get<int>(), l.at("out").get<int>());
@@ -685,7 +687,8 @@ Result<NeuralModel> NeuralModel::Load(const std::string& folder) {
     return MakeError(ErrorCode::kCorrupt, json_path, "{}", e.what());
   }
   const int k = m.latent_;
-  if (m.width_ < 1 || m.height_ < 1 || k < 1 || k > 64 ||
+  if (m.width_ < 1 || m.height_ < 1 || m.width_ > 65500 || m.height_ > 65500 ||
+      static_cast<int64_t>(m.width_) * m.height_ > (int64_t{1} << 28) || k < 1 || k > 64 ||
       m.scale_.size() != static_cast<size_t>(k) || m.bias_.size() != static_cast<size_t>(k) ||
       dims.empty() || dims.front().first != k + 2 || dims.back().second != 3)
     return MakeError(ErrorCode::kCorrupt, json_path, "inconsistent sizes");
@@ -694,7 +697,6 @@ Result<NeuralModel> NeuralModel::Load(const std::string& folder) {
     return MakeError(ErrorCode::kCorrupt, json_path, "{} code images for {} codes",
                      m.code_names_.size(), k);
   const size_t pixels = static_cast<size_t>(m.width_) * m.height_;
-  m.codes_.assign(pixels * k, 0);
   for (size_t i = 0; i < planes.size(); ++i) {
     const std::string path = folder + "/" + m.code_names_[i];
     RIG_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, ReadBytes(path));
@@ -709,6 +711,8 @@ Result<NeuralModel> NeuralModel::Load(const std::string& folder) {
         !img.isContinuous())
       return MakeError(ErrorCode::kCorrupt, path, "expected an 8-bit {}-channel {}x{} image", ch,
                        m.width_, m.height_);
+    // Allocated once an image of the declared size is there (not on the word of neural.json).
+    if (m.codes_.empty()) m.codes_.assign(pixels * k, 0);
     for (size_t p = 0; p < pixels; ++p)
       for (size_t c = 0; c < planes[i].size(); ++c)
         m.codes_[p * k + planes[i][c]] = img.data[p * static_cast<size_t>(ch) + c];

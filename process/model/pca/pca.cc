@@ -2,6 +2,8 @@
 // "bilinear" layout), coefficients refitted through the stored basis, masked samples fitted
 // around, planes quantised as relight does and written as RGB JPEGs.
 #include "process/model/pca/pca.h"
+#include "config/atomic_file.h"
+#include "process/io/model_limits.h"
 
 #include <algorithm>
 #include <atomic>
@@ -798,15 +800,7 @@ Status WritePcaInfo(const std::string& folder, int width, int height, const PcaB
                  {"eigenvalues", basis.eigenvalues}};
   if (!near_lamp.empty()) info["rig"]["near_lamp"] = near_lamp;
   const fs::path path = fs::path(folder) / "info.json";
-  const fs::path tmp = fs::path(folder) / ".info.json.tmp";
-  {
-    std::ofstream f(tmp);
-    f << info.dump() << "\n";
-    f.flush();
-    if (!f) return MakeError(ErrorCode::kIo, tmp.string(), "cannot write");
-  }
-  fs::rename(tmp, path, ec);
-  if (ec) return MakeError(ErrorCode::kIo, path.string(), "cannot write: {}", ec.message());
+  RIG_TRY(WriteFileAtomic(path, info.dump() + "\n"));
   // Planes of an earlier, larger model in the same folder would be counted as its bytes
   // and confuse a reader that lists files: this model's are plane_0 .. plane_{files-1}.
   for (int n = (basis.components + 2) / 3;; ++n) {
@@ -817,6 +811,31 @@ Status WritePcaInfo(const std::string& folder, int width, int height, const PcaB
   }
   return Ok();
 }
+
+namespace {
+
+// Every plane's byte count and header against info.json's size, before any is decoded.
+Status CheckPlaneHeaders(const std::string& folder, int files, int width, int height) {
+  for (int j = 0; j < files; ++j) {
+    const std::string plane = (fs::path(folder) / fmt::format("plane_{}.jpg", j)).string();
+    std::error_code ec;
+    const uint64_t bytes = fs::file_size(plane, ec);
+    if (ec) return MakeError(ErrorCode::kNotFound, plane, "cannot open: {}", ec.message());
+    if (bytes < MinJpegBytes(width, height)) {
+      return MakeError(ErrorCode::kInvalidInput, plane,
+                       "{} bytes cannot hold a {}x{} JPEG: the size info.json declares is not the file's",
+                       bytes, width, height);
+    }
+    RIG_ASSIGN_OR_RETURN(auto reader, JpegReader::Open(plane));
+    if (reader->width() != width || reader->height() != height || reader->channels() != 3) {
+      return MakeError(ErrorCode::kInvalidInput, plane, "{}x{}x{}, info.json says {}x{}x3",
+                       reader->width(), reader->height(), reader->channels(), width, height);
+    }
+  }
+  return Ok();
+}
+
+}  // namespace
 
 Result<PcaModel> PcaModel::Load(const std::string& folder) {
   const std::string path = (fs::path(folder) / "info.json").string();
@@ -867,10 +886,13 @@ Result<PcaModel> PcaModel::Load(const std::string& folder) {
                        bias.size(), b.range.size(), k);
     }
     for (int p = 0; p < k; ++p) {
-      if (!std::isfinite(scale[p]) || !std::isfinite(bias[p]) || !std::isfinite(b.range[p]) ||
-          b.range[p] == 0) {
-        return MakeError(ErrorCode::kInvalidInput, path, "materials: plane {} not finite", p);
-      }
+      RIG_TRY(CheckFloatValue(scale[p], path, fmt::format("materials[0].scale[{}]", p)));
+      RIG_TRY(CheckFloatValue(bias[p], path, fmt::format("materials[0].bias[{}]", p)));
+      RIG_TRY(CheckFloatValue(b.range[p], path, fmt::format("materials[0].range[{}]", p)));
+      if (b.range[p] == 0)
+        return MakeError(ErrorCode::kInvalidInput, path, "materials[0].range[{}]: 0", p);
+      RIG_TRY(CheckDequantisation(scale[p], -255.0 * bias[p] * scale[p], path,
+                                  fmt::format("materials[0].scale[{}], bias[{}]", p, p)));
       // c = 255·(byte/255 − bias)·scale = byte·scale − 255·bias·scale
       PlaneQuantisation q;
       q.min = -255.0 * bias[p] * scale[p];
@@ -900,6 +922,7 @@ Result<PcaModel> PcaModel::Load(const std::string& folder) {
     return MakeError(ErrorCode::kInvalidInput, path, "{}", e.what());
   }
   const int k = m.basis_.components;
+  RIG_TRY(CheckPlaneHeaders(folder, (k + 2) / 3, m.width_, m.height_));
   for (int j = 0; j < (k + 2) / 3; ++j) {
     const std::string plane = (fs::path(folder) / fmt::format("plane_{}.jpg", j)).string();
     RIG_ASSIGN_OR_RETURN(cv::Mat rgb, ReadJpeg(plane));

@@ -1,5 +1,6 @@
 // Band-streamed model fit: OpenEXR scanline ranges in, the shared matrix, bands out.
 #include "process/model/session/model_stream.h"
+#include "process/io/exr_ostream.h"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -105,14 +106,6 @@ class BandReader : public MapBands {
   std::vector<std::pair<int, int>> origin_;
   int width_ = 0, height_ = 0;
 };
-
-std::string TempPath(const std::string& path) {
-  static std::atomic<unsigned> counter{0};
-  std::filesystem::path p(path);
-  return (p.parent_path() / ("." + p.filename().string() + ".tmp." + std::to_string(::getpid()) +
-                             "." + std::to_string(counter.fetch_add(1))))
-      .string();
-}
 
 }  // namespace
 
@@ -531,24 +524,6 @@ Status FitAndWriteBands(const BandFit& f, int workers, Imf::OutputFile& file,
   return failed;
 }
 
-// The written temporary synced and renamed into place; *sync_s receives the fsync's time.
-Status MoveIntoPlace(const std::string& tmp, const std::string& out_path, double* sync_s) {
-  const auto t_sync = std::chrono::steady_clock::now();
-  int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd >= 0) {
-    ::fsync(fd);
-    ::close(fd);
-  }
-  *sync_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_sync).count();
-  std::error_code ec;
-  std::filesystem::rename(tmp, out_path, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    return MakeError(ErrorCode::kIo, out_path, "cannot move the written model into place");
-  }
-  return Ok();
-}
-
 // Pass 1: the Gram matrix of evenly spaced bands — accumulated already when the maps were
 // kept in memory as they arrived (selection_gram.h), else computed now from the bands, in the
 // same arithmetic. *accumulated says which.
@@ -576,7 +551,9 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
                      in.directions.size());
   }
   const std::vector<double> weights = in.weights.empty() ? UniformHemisphereWeights(n) : in.weights;
-  const std::string tmp = TempPath(out_path);
+  // The model through the project's one writer: a fresh temporary (O_EXCL|O_NOFOLLOW) moved
+  // over out_path when complete, removed when anything fails.
+  RIG_ASSIGN_OR_RETURN(AtomicFile out_file, AtomicFile::Create(out_path));
   try {
     const int w = maps.width(), h = maps.height();
     const int band = std::max(1, in.band_rows);
@@ -615,17 +592,15 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
     WriterTimes times;
     Status failed = Ok();
     SetExrThreads(threads);
+    AtomicExrStream stream(std::move(out_file));
     {
-      Imf::OutputFile file(tmp.c_str(), header, threads);
+      Imf::OutputFile file(stream, header, threads);
       failed = FitAndWriteBands(f, workers, file, &out.missing, &times);
     }
-    if (!failed.ok()) {
-      std::error_code ec;
-      std::filesystem::remove(tmp, ec);
-      return failed.error();
-    }
+    if (!failed.ok()) return failed.error();
     double sync_s = 0;
-    RIG_TRY(MoveIntoPlace(tmp, out_path, &sync_s));
+    if (Status st = stream.Commit(&sync_s); !st.ok())
+      return st.error().Within("cannot move the written model into place");
     out.time_s = since_t0();
     if (tile > 0) out.projectors = projectors.load();
     if (lamp.near()) {
@@ -644,8 +619,6 @@ Result<StreamFitOutput> FitModelFromBands(MapBands& maps, const StreamFitInput& 
                          times.samples_s, times.project_s, times.wait_s, times.write_s, sync_s);
     return out;
   } catch (const std::exception& e) {
-    std::error_code ec;
-    std::filesystem::remove(tmp, ec);
     return MakeError(ErrorCode::kIo, out_path, "streamed fit failed: {}", e.what());
   }
 }
