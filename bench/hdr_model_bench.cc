@@ -35,6 +35,7 @@
 #include "process/model/neural/neural.h"
 #include "process/model/pca/pca.h"
 #include "process/model/pca/pca_choice.h"
+#include "process/model/pca/pca_hdr.h"
 #include "process/model/session/model_stream.h"
 #include "sim/dry_session.h"
 #include "sim/truth.h"
@@ -85,6 +86,7 @@ struct Args {
   double smoothness = -1;
   double high = 0.9999;  // the curve's max at this quantile of ρ  // the PCA grid prior's strength; < 0: chosen by leave-one-out
   bool fresh = false;
+  bool hdr_auto = true;  // the HDR PCA choice (FitPcaHdrAuto, the session default's candidate)
 };
 
 Args ParseArgs(int argc, char** argv) {
@@ -101,6 +103,7 @@ Args ParseArgs(int argc, char** argv) {
     else if (k == "--height") a.height = std::stoi(next());
     else if (k == "--threads") a.threads = std::stoi(next());
     else if (k == "--fresh") a.fresh = true;
+    else if (k == "--no-auto") a.hdr_auto = false;
     else if (k == "--high") a.high = std::stod(next());
     else if (k == "--smoothness") a.smoothness = std::stod(next());
     else if (k == "--sh") {
@@ -355,6 +358,20 @@ void InterpolationRow(const Reference& ref) {
               ref.maps.size() * 6.0, 0.0, rel[0], rel[1], rel[2], "bilinear in (h, v), every map kept");
 }
 
+void HdrAutoRow(const Args& a, const Reference& ref) {
+  rig::PcaHdrChoiceOptions o;
+  o.threads = a.threads;
+  o.scratch = (a.dir / "pca-hdr-scratch").string();
+  const auto t = Clock::now();
+  rig::PcaHdrFit fit = Must(rig::FitPcaHdrAuto(ref.maps, ref.directions, ref.config.lamp.radiance_rgb,
+                                               ref.config.light_frame, o));
+  const double fit_s = Seconds(t);
+  const std::string out = (a.dir / "pca-hdr-auto").string();
+  Must(fit.model.Save(out));
+  std::printf("%s", rig::PcaHdrChoiceMarkdown(fit).c_str());
+  Row("pca hdr chosen (FitPcaHdrAuto)", out, fit_s, ref, fit.reason);
+}
+
 void HarmonicRows(const Args& a, const Reference& ref) {
   rig::StreamFitInput in;
   in.paths = ref.map_paths;
@@ -439,6 +456,7 @@ int main(int argc, char** argv) {
   Row("session default (model/model.exr)", (a.dir / "session" / "model" / "model.exr").string(), 0, ref,
       "as the dry run wrote it");
   InterpolationRow(ref);
+  if (a.hdr_auto) HdrAutoRow(a, ref);
   HarmonicRows(a, ref);
   PcaRows(a, ref);
   return 0;

@@ -28,8 +28,8 @@ TEST(HdrCodes, LogCurveIsRelativeAboveItsFloorAndZeroAtZero) {
   for (double rho : {0.001, 0.05, 1.0, 37.0}) EXPECT_NEAR(c.Decode(c.Encode(rho)), rho, 1e-9 * rho);
   // Far above the floor a code is a constant ratio: ln(1 + 1e4) / 255 per code.
   const double step = std::log1p(100 / 0.01) / 255;
-  EXPECT_NEAR(c.TopStep(), std::expm1(step), 1e-6);
-  EXPECT_NEAR(c.Encode(50) - c.Encode(25), std::log(2.0) / step, 1e-3);
+  EXPECT_NEAR(c.TopStep(), std::expm1(step), 1e-3 * c.TopStep());
+  EXPECT_NEAR(c.Encode(50) - c.Encode(25), std::log(2.0) / step, 0.01);
 }
 
 TEST(HdrCodes, SrgbCurveScalesThePhotographsCurve) {
@@ -109,6 +109,8 @@ TEST(HdrPca, ModelOfRadianceMapsDecodesToLinearReflectanceAndRadiance) {
   const std::array<double, 3> lamp = {2.0, 1.5, 1.0};
   const auto maps = scene.Radiance(lamp);
   HdrCurveOptions co;
+  co.curve = HdrCurve::kPower;
+  co.gamma = 1.25;
   co.high = 1.0;
   const HdrCodeCurve curve = FitHdrCurve(ReflectanceOf(maps, lamp), co);
   EXPECT_GT(curve.max, 50);  // the highlight is in range
@@ -128,7 +130,7 @@ TEST(HdrPca, ModelOfRadianceMapsDecodesToLinearReflectanceAndRadiance) {
   {
     std::ifstream f(dir + "/info.json");
     const auto info = nlohmann::json::parse(f);
-    EXPECT_EQ(info.at("rig").at("values").at("encoding"), "log");
+    EXPECT_EQ(info.at("rig").at("values").at("encoding"), "power");
     EXPECT_DOUBLE_EQ(info.at("rig").at("values").at("max").get<double>(), curve.max);
   }
   auto loaded = LoadReflectanceModel(dir);
@@ -153,9 +155,29 @@ TEST(HdrPca, ModelOfRadianceMapsDecodesToLinearReflectanceAndRadiance) {
           EXPECT_NEAR(radiance.at<cv::Vec3f>(y, x)[2 - c], p * lamp[c], 1e-4 * (1 + p * lamp[c]));
         }
   }
-  EXPECT_LT(std::sqrt(err / ref), 0.05);
+  const double power_error = std::sqrt(err / ref);
+  EXPECT_LT(power_error, 0.10);
   EXPECT_GT(peak, 0.8 * peak_truth);
   EXPECT_GT(peak_truth, 20);
+  // The same model in log codes: a curve that spends its codes on the shadows leaves the
+  // highlight, which dominates linear error, coarse — the reason the session default is not log.
+  co.curve = HdrCurve::kLog;
+  const HdrCodeCurve log_curve = FitHdrCurve(ReflectanceOf(maps, lamp), co);
+  auto lm = FitPca(SamplesFromMaps(maps, scene.lights, lamp, log_curve), o);
+  ASSERT_TRUE(lm.ok());
+  lm->set_hdr({log_curve, lamp, frame});
+  const auto wrapped = WrapPca(std::move(*lm));
+  double lerr = 0;
+  for (int l : {3, 14, 25, 36}) {
+    const cv::Mat rho = wrapped->EvaluateRho(scene.lights[l]);
+    for (int y = 0; y < scene.height; ++y)
+      for (int x = 0; x < scene.width; ++x)
+        for (int c = 0; c < 3; ++c) {
+          const double d = rho.at<cv::Vec3f>(y, x)[2 - c] - scene.Rho(x, y, scene.lights[l], c);
+          lerr += d * d;
+        }
+  }
+  EXPECT_GT(std::sqrt(lerr / ref), 1.5 * power_error);
   fs::remove_all(fs::path(dir).parent_path());
 }
 
