@@ -8,8 +8,14 @@
 // lamp, on always-lit ones; bytes per pixel on disk; fit time.
 //
 //   build/bench/hdr_model_bench [--dir /tmp/hdr_model_bench] [--width 320 --height 240]
-//       [--config FILE] [--sh 2,3,4,5,6] [--pca K:R:Q,...] [--curves log,srgb]
-//       [--auto-budgets 30] [--threads 2] [--keep]
+//       [--config FILE] [--sh 2,3,4,5,6] [--pca K:R:Q,...] [--curves log,srgb,power1.25]
+//       [--auto-budgets 30] [--neural 9,...] [--high 0.9999] [--smoothness S] [--no-auto]
+//       [--threads 2] [--fresh]
+//
+// Rows: the session's model; the maps interpolated bilinearly in (h, v) (a reference, no
+// model); the PCA model FitPcaHdrAuto chooses (its candidate table first); SH of each order;
+// for each curve, PCA of each K components, R×R grid, JPEG quality Q, the PCA size choice of
+// the photographs' path (ChoosePca, code-space error) within each budget, neural models.
 //
 // The session's own model (the dry run's default, from model/model.exr as written) is the
 // first row; a folder left by an earlier run with the same size is reused (--fresh: not).

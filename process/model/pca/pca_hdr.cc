@@ -130,8 +130,14 @@ Result<PcaHdrFit> FitPcaHdrAuto(const std::vector<cv::Mat>& radiance,
     if (c.within_budget && (fit.best < 0 || c.held_out_relative < fit.candidates[fit.best].held_out_relative))
       fit.best = static_cast<int>(i);
   }
+  bool over_budget = false;
   if (fit.best < 0) {
-    return MakeError(ErrorCode::kInvalidInput, "pca", "no candidate within {:.1f} B/px", o.max_bytes_per_pixel);
+    // A small image: the grid's JSON alone may exceed the budget. The smallest candidate, said.
+    over_budget = true;
+    for (auto& c : fit.candidates) c.within_budget = true;
+    for (size_t i = 0; i < fit.candidates.size(); ++i)
+      if (fit.best < 0 || fit.candidates[i].bytes_per_pixel < fit.candidates[fit.best].bytes_per_pixel)
+        fit.best = static_cast<int>(i);
   }
   const double limit = fit.candidates[fit.best].held_out_relative * (1 + o.tolerance);
   for (size_t i = 0; i < fit.candidates.size(); ++i) {
@@ -160,6 +166,12 @@ Result<PcaHdrFit> FitPcaHdrAuto(const std::vector<cv::Mat>& radiance,
       held.size(), ch.bytes_per_pixel, fit.candidates.size(), 100 * o.tolerance,
       o.max_bytes_per_pixel, best.curve, best.components, best.resolution, best.resolution,
       best.quality, best.held_out_relative, best.bytes_per_pixel);
+  if (over_budget) {
+    fit.reason = fmt::format("no candidate fits {:.1f} B/px at {}x{} (the grid is stored whatever the "
+                             "image's size), so the smallest: ", o.max_bytes_per_pixel,
+                             radiance[0].cols, radiance[0].rows) + fit.reason;
+    Log("process")->warn("pca of radiance maps: {}", fit.reason);
+  }
   fit.time_s = std::chrono::duration<double>(Clock::now() - t0).count();
   Log("process")->info("pca of radiance maps: {} ({:.2f} s)", fit.reason, fit.time_s);
   return fit;

@@ -3,7 +3,8 @@
 // written as it ships, read back and scored in linear reflectance at the lamps held out; the
 // smallest candidate within a tolerance of the best that fits the byte budget is fitted again
 // on every lamp. Everything comes from the maps given, so run inside a fold it is a choice made
-// inside the fold.
+// inside the fold. When no candidate fits the budget (a small image: the grid is stored
+// whatever the image's size) the smallest is taken and the reason says so.
 #pragma once
 
 #include <array>
