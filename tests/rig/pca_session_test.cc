@@ -8,6 +8,8 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "capture/daemon/session_model.h"
+#include "capture/session/session_store.h"
 #include "process/io/exr_io.h"
 #include "tests/support/dry_session.h"
 #include "tests/support/run_rig.h"
@@ -74,6 +76,28 @@ TEST_F(PcaSession, RenderGivesTheSessionsRadiance) {
   auto map = ReadRgbExr(*session_ + "/hdr/h040_v10.exr");
   ASSERT_TRUE(map.ok());
   EXPECT_LT(cv::norm(*img, *map, cv::NORM_L2) / cv::norm(*map, cv::NORM_L2), 0.10);
+}
+
+std::string Bytes(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+TEST_F(PcaSession, TheModelFromTheFilesEqualsTheCapturesFromMemoryByteForByte) {
+  EXPECT_NE(Bytes(fs::path(*session_) / "log.txt").find("model fitted from the maps in memory"),
+            std::string::npos);
+  const fs::path copy = fs::path(*dir_) / "copy";
+  fs::copy(*session_, copy, fs::copy_options::recursive);
+  fs::remove_all(copy / "model");
+  auto session = Session::OpenExisting(copy);
+  ASSERT_TRUE(session.ok()) << session.error().ToString();
+  ASSERT_TRUE(FitSessionModel(*session).ok());  // no maps held: from the files
+  int files = 0;
+  for (const auto& e : fs::directory_iterator(fs::path(*session_) / "model" / "pca")) {
+    EXPECT_EQ(Bytes(e.path()), Bytes(copy / "model" / "pca" / e.path().filename())) << e.path();
+    ++files;
+  }
+  EXPECT_GE(files, 2);
 }
 
 TEST_F(PcaSession, ViewWritesThePage) {
