@@ -11,6 +11,7 @@
 #include "capture/plan/pose.h"
 #include "config/console.h"
 #include "config/log.h"
+#include "process/model/pca/pca_hdr.h"
 #include "process/model/session/map_fit.h"
 #include "process/model/session/model_stream.h"
 
@@ -85,6 +86,53 @@ std::string SessionFitReport(const Session& session, const StreamFitOutput& fit,
   return md;
 }
 
+// The PCA family's session model (model/pca/, relight's web format with the HDR values in
+// info.json): every map read whole from `bands` — the maps in memory or their files, the same
+// values either way, so the same model — and its value curve and size chosen per byte.
+Status FitSessionPca(const Session& session, MapBands& bands, const StreamFitInput& in,
+                     const std::string& source) {
+  auto log = Log("process");
+  const Config& config = session.config();
+  const SessionLayout& layout = session.layout();
+  if (in.near_lamp.near()) {
+    return MakeError(ErrorCode::kInvalidInput, layout.config().string(),
+                     "[process] model_family = \"pca\" does not model a near lamp's fall-off yet: "
+                     "use \"harmonic\" with [light_frame] lamp_distance_mm");
+  }
+  std::vector<cv::Mat> bgr, valid;
+  try {
+    RIG_TRY(bands.Read(0, bands.height(), &bgr, &valid));
+  } catch (const std::exception& e) {
+    return MakeError(ErrorCode::kIo, layout.hdr().string(), "cannot read the radiance maps: {}", e.what());
+  }
+  RIG_ASSIGN_OR_RETURN(fs::path model_dir, EnsureSessionFolder(layout.root, "model"));
+  PcaHdrChoiceOptions o;
+  o.max_bytes_per_pixel = config.process.pca_max_bytes_per_pixel;
+  o.threads = config.process.threads;
+  o.scratch = (model_dir / ".pca-choice").string();
+  RIG_ASSIGN_OR_RETURN(PcaHdrFit fit, FitPcaHdrAuto(bgr, in.directions, in.lamp_radiance_rgb,
+                                                    config.light_frame, o));
+  const fs::path out = model_dir / "pca";
+  RIG_TRY(fit.model.Save(out.string()));
+  const double pixels = static_cast<double>(fit.model.width()) * fit.model.height();
+  const double bpp = static_cast<double>(FolderBytes(out.string())) / pixels;
+  log->info("model fitted from {}", source);
+  const std::string report = fmt::format(
+      "# The session's model\n\nPCA of the reflectance (radiance / lamp radiance) of {} radiance "
+      "maps, {:.2f} B/px on disk, fitted in {:.2f} s from {}.\n\n{}.\n\nEvery candidate fitted "
+      "without every 6th lamp, written, read back and scored at the lamps held out (relative RMS "
+      "of linear reflectance):\n\n{}",
+      bgr.size(), bpp, fit.time_s, source, fit.reason, PcaHdrChoiceMarkdown(fit));
+  Status st = WriteFileAtomic(layout.model() / "report.md", report);
+  if (!st.ok()) log->warn("{}", st.error().ToString());
+  ConsoleLine(stdout, fmt::format("model: {} (pca, {} components, {}x{} grid, JPEG q{}, {} curve, "
+                                  "{:.1f} B/px; {:.2f} s)",
+                                  out.string(), fit.model.components(), fit.model.basis().resolution,
+                                  fit.model.basis().resolution, fit.model.jpeg_quality(),
+                                  HdrCurveName(fit.model.hdr()->curve.curve), bpp, fit.time_s));
+  return Ok();
+}
+
 }  // namespace
 
 std::string FitSpaceUnit(const std::string& space) {
@@ -112,6 +160,7 @@ Status FitSessionModel(const Session& session, const MapStore* maps) {
     log->info("lamp radiance from the reference patch: R={:.4g} G={:.4g} B={:.4g}",
               in.lamp_radiance_rgb[0], in.lamp_radiance_rgb[1], in.lamp_radiance_rgb[2]);
   }
+  if (config.process.model_family == "pca") return FitSessionPca(session, *bands, in, source);
   RIG_ASSIGN_OR_RETURN(FitOptions options, FitOptionsFromConfig(config.process));
   options.threads = config.process.threads;
   ExrPixelType type = config.process.model_pixel_type == "float" ? ExrPixelType::kFloat : ExrPixelType::kHalf;

@@ -15,9 +15,19 @@ Result<RenderSource> ResolveRenderSource(const std::string& source,
     // A model folder (relight's web format): no session around it.
     in.model_path = source;
   } else if (fs::is_directory(p)) {
-    // A session folder: its model, its response curve, its display settings.
+    // A session folder: its model (the family its configuration fits: model/model.exr, or
+    // model/pca/ for [process] model_family = "pca"), its response curve, its display settings.
     const SessionLayout layout{p};
     in.model_path = (layout.model() / "model.exr").string();
+    const fs::path pca = layout.model() / "pca";
+    if (fs::exists(pca / "info.json")) {
+      bool pca_family = !fs::exists(in.model_path);
+      if (!pca_family && fs::exists(layout.config())) {
+        auto config = LoadConfigOrError(layout.config().string());
+        pca_family = config.ok() && config->process.model_family == "pca";
+      }
+      if (pca_family) in.model_path = pca.string();
+    }
     if (!fs::exists(in.model_path)) {
       return MakeError(ErrorCode::kNotFound, in.model_path,
                        "the session has no model yet (run 'rig process {}')", source);

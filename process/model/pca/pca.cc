@@ -756,13 +756,67 @@ Status PcaModel::Save(const std::string& folder) const {
     RIG_TRY(WriteJpeg((fs::path(folder) / fmt::format("plane_{}.jpg", j)).string(), rgb,
                       kPcaPlaneColor, jpeg_quality_));
   }
-  return WritePcaInfo(folder, width_, height_, basis_, quant_, lights_, jpeg_quality_, near_lamp_);
+  return WritePcaInfo(folder, width_, height_, basis_, quant_, lights_, jpeg_quality_, near_lamp_,
+                      hdr_);
 }
+
+namespace {
+
+nlohmann::ordered_json HdrValuesJson(const PcaHdrValues& v) {
+  const auto& f = v.light_frame;
+  return {{"encoding", HdrCurveName(v.curve.curve)},
+          {"max", v.curve.max},
+          {"floor", v.curve.floor},
+          {"gamma", v.curve.gamma},
+          {"lamp_radiance_rgb", v.lamp_radiance_rgb},
+          {"light_frame",
+           {{"h_offset_deg", f.h_offset_deg},
+            {"v_offset_deg", f.v_offset_deg},
+            {"h_sign", f.h_sign},
+            {"v_sign", f.v_sign},
+            {"lamp_distance_mm", f.lamp_distance_mm},
+            {"field_height_mm", f.field_height_mm},
+            {"surface_depth_mm", f.surface_depth_mm}}}};
+}
+
+// rig.values back; errors name the file.
+Result<PcaHdrValues> HdrValuesFromJson(const nlohmann::json& j, const std::string& path) {
+  PcaHdrValues v;
+  auto curve = ParseHdrCurve(j.at("encoding").get<std::string>());
+  if (!curve.ok()) return MakeError(ErrorCode::kInvalidInput, path, "rig.values: {}", curve.error().ToString());
+  v.curve.curve = *curve;
+  v.curve.max = j.at("max").get<double>();
+  v.curve.floor = j.at("floor").get<double>();
+  v.curve.gamma = j.value("gamma", 1.0);
+  v.lamp_radiance_rgb = j.at("lamp_radiance_rgb").get<std::array<double, 3>>();
+  const auto& f = j.at("light_frame");
+  v.light_frame.h_offset_deg = f.at("h_offset_deg").get<double>();
+  v.light_frame.v_offset_deg = f.at("v_offset_deg").get<double>();
+  v.light_frame.h_sign = f.at("h_sign").get<int>();
+  v.light_frame.v_sign = f.at("v_sign").get<int>();
+  v.light_frame.lamp_distance_mm = f.value("lamp_distance_mm", 0.0);
+  v.light_frame.field_height_mm = f.value("field_height_mm", 0.0);
+  v.light_frame.surface_depth_mm = f.value("surface_depth_mm", 0.0);
+  const bool lamp_ok = std::all_of(v.lamp_radiance_rgb.begin(), v.lamp_radiance_rgb.end(),
+                                   [](double e) { return std::isfinite(e) && e > 0; });
+  if (!(std::isfinite(v.curve.max) && v.curve.max > 0 && std::isfinite(v.curve.floor) &&
+        std::isfinite(v.curve.gamma) && v.curve.gamma >= 0.25 && v.curve.gamma <= 4 &&
+        v.curve.floor > 0 && v.curve.floor <= v.curve.max) || !lamp_ok ||
+      std::abs(v.light_frame.h_sign) != 1 || std::abs(v.light_frame.v_sign) != 1) {
+    return MakeError(ErrorCode::kInvalidInput, path,
+                     "rig.values: max {} floor {} (0 < floor <= max), lamp radiance positive, "
+                     "signs 1 or -1 needed", v.curve.max, v.curve.floor);
+  }
+  return v;
+}
+
+}  // namespace
 
 Status WritePcaInfo(const std::string& folder, int width, int height, const PcaBasis& basis,
                     const std::vector<PlaneQuantisation>& quant,
                     const std::vector<Vec3>& lights, int jpeg_quality,
-                    const std::string& near_lamp) {
+                    const std::string& near_lamp,
+                    const std::optional<PcaHdrValues>& hdr) {
   std::error_code ec;
   const int k = basis.components;
   nlohmann::ordered_json info;
@@ -799,6 +853,7 @@ Status WritePcaInfo(const std::string& folder, int width, int height, const PcaB
                  {"light_loo_rms", basis.light_loo_rms},
                  {"eigenvalues", basis.eigenvalues}};
   if (!near_lamp.empty()) info["rig"]["near_lamp"] = near_lamp;
+  if (hdr) info["rig"]["values"] = HdrValuesJson(*hdr);
   const fs::path path = fs::path(folder) / "info.json";
   RIG_TRY(WriteFileAtomic(path, info.dump() + "\n"));
   // Planes of an earlier, larger model in the same folder would be counted as its bytes
@@ -917,6 +972,10 @@ Result<PcaModel> PcaModel::Load(const std::string& folder) {
       b.light_loo_rms = r.value("light_loo_rms", 0.0);
       if (r.contains("eigenvalues")) b.eigenvalues = r.at("eigenvalues").get<std::vector<double>>();
       m.near_lamp_ = r.value("near_lamp", std::string());
+      if (r.contains("values")) {
+        RIG_ASSIGN_OR_RETURN(PcaHdrValues v, HdrValuesFromJson(r.at("values"), path));
+        m.hdr_ = v;
+      }
     }
   } catch (const nlohmann::json::exception& e) {
     return MakeError(ErrorCode::kInvalidInput, path, "{}", e.what());
@@ -964,6 +1023,7 @@ class PcaFamily final : public ReflectanceModel {
  public:
   explicit PcaFamily(PcaModel m) : m_(std::move(m)) {
     spacing_deg_ = m_.lights().empty() ? 0 : SampleSpacingDeg(m_.lights());
+    if (m_.hdr()) frame_ = m_.hdr()->light_frame;
   }
   std::string family() const override { return "pca-bilinear"; }
   std::string Describe() const override {
@@ -972,17 +1032,31 @@ class PcaFamily final : public ReflectanceModel {
                        "{:.3g}), 8-bit planes, JPEG q{}",
                        b.components, b.resolution, b.resolution,
                        b.prior == GridPrior::kBending ? "bending" : "membrane", b.smoothness,
-                       m_.jpeg_quality());
+                       m_.jpeg_quality()) +
+           (m_.hdr() ? fmt::format(", reflectance of radiance maps through a {} curve up to {:.4g}",
+                                   HdrCurveName(m_.hdr()->curve.curve), m_.hdr()->curve.max)
+                     : std::string());
   }
   int width() const override { return m_.width(); }
   int height() const override { return m_.height(); }
-  ValueEncoding encoding() const override { return ValueEncoding::kSrgb; }
+  ValueEncoding encoding() const override {
+    return m_.hdr() ? ValueEncoding::kLinear : ValueEncoding::kSrgb;
+  }
   const LightFrameConfig& light_frame() const override { return frame_; }
+  std::array<double, 3> lamp_radiance_rgb() const override {
+    return m_.hdr() ? m_.hdr()->lamp_radiance_rgb : std::array<double, 3>{1, 1, 1};
+  }
   cv::Mat EvaluateRho(const Vec3& d) const override {
     cv::Mat v = m_.Render(d);
     float* p = v.ptr<float>();
     const size_t n = v.total() * 3;
-    for (size_t i = 0; i < n; ++i) p[i] = SrgbDecode(p[i]);
+    if (m_.hdr()) {
+      // Codes below 0 (a model's undershoot) are no reflectance: ρ is 0 there, never negative.
+      const HdrCodeCurve& c = m_.hdr()->curve;
+      for (size_t i = 0; i < n; ++i) p[i] = static_cast<float>(c.Decode(std::max(0.0f, p[i]) * 255.0));
+    } else {
+      for (size_t i = 0; i < n; ++i) p[i] = SrgbDecode(p[i]);
+    }
     return v;
   }
   RegionCheck CheckRegion(const Vec3& d) const override {

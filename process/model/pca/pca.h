@@ -10,6 +10,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -19,6 +20,7 @@
 
 #include "config/result.h"
 #include "process/io/jpeg_io.h"
+#include "process/model/hdr_codes.h"
 #include "process/model/light_direction.h"
 #include "process/model/light_samples.h"
 #include "process/model/reflectance_model.h"
@@ -95,6 +97,16 @@ struct PcaFitStats {
 // would keep the three planes' errors apart, but not every relight reader would read it.
 inline constexpr JpegColor kPcaPlaneColor = JpegColor::kYcbcr;
 
+// What the codes of a model fitted to radiance maps are (info.json's rig.values): reflectance
+// (radiance ÷ the session's lamp radiance) through an HDR curve, lamp directions from the
+// rig's angles through the session's light frame. Without it the codes are the photographs'
+// own (sRGB, lamp radiance 1, directions as the capture gave them).
+struct PcaHdrValues {
+  HdrCodeCurve curve;
+  std::array<double, 3> lamp_radiance_rgb = {1, 1, 1};
+  LightFrameConfig light_frame;
+};
+
 struct PcaComponents;
 
 class PcaModel {
@@ -111,6 +123,9 @@ class PcaModel {
   // empty: none.
   const std::string& near_lamp() const { return near_lamp_; }
   void set_near_lamp(std::string note) { near_lamp_ = std::move(note); }
+  // Radiance-map reflectance (see PcaHdrValues); empty: photographs' codes.
+  const std::optional<PcaHdrValues>& hdr() const { return hdr_; }
+  void set_hdr(PcaHdrValues values) { hdr_ = std::move(values); }
 
   // Predicted values at a direction, CV_32FC3 in B, G, R order, in encoded units (code / 255,
   // not clipped). Uses the coefficients exactly as held (after Load: as the files hold them).
@@ -132,6 +147,7 @@ class PcaModel {
   std::vector<cv::Mat> planes_;  // k × CV_8U, the quantised coefficients
   std::vector<Vec3> lights_;     // the fitted lights (written as relight does)
   std::string near_lamp_;
+  std::optional<PcaHdrValues> hdr_;
 };
 
 // The principal components of a capture's samples over a seeded sample of pixels, with the
@@ -208,11 +224,12 @@ void QuantisePcaPlane(const Eigen::MatrixXf& coefficients, int p, const PlaneQua
 // info.json alone, exactly as PcaModel::Save writes it beside the planes (replaced through a
 // temporary name), for writers that produce the planes themselves; the folder must exist.
 // `near_lamp` (non-empty): how the samples were corrected for a near lamp, written in the
-// "rig" block.
+// "rig" block; `hdr`: what the codes are, in the "rig" block's "values".
 Status WritePcaInfo(const std::string& folder, int width, int height, const PcaBasis& basis,
                     const std::vector<PlaneQuantisation>& quantisation,
                     const std::vector<Vec3>& lights, int jpeg_quality,
-                    const std::string& near_lamp = "");
+                    const std::string& near_lamp = "",
+                    const std::optional<PcaHdrValues>& hdr = std::nullopt);
 
 // The same basis with only its first k components (exact: each is quantised on its own).
 PcaBasis TruncatePcaBasis(const PcaBasis& basis, int k);

@@ -1,0 +1,112 @@
+// Reflectance of radiance maps as 8-bit codes.
+#include "process/model/hdr_codes.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "process/model/samples.h"
+
+namespace rig {
+
+const char* HdrCurveName(HdrCurve curve) {
+  return curve == HdrCurve::kLog ? "log" : curve == HdrCurve::kSrgb ? "srgb" : "power";
+}
+
+Result<HdrCurve> ParseHdrCurve(const std::string& name) {
+  if (name == "log") return HdrCurve::kLog;
+  if (name == "srgb") return HdrCurve::kSrgb;
+  if (name == "power") return HdrCurve::kPower;
+  return MakeError(ErrorCode::kInvalidInput, name, "unknown value curve (log, srgb, power)");
+}
+
+double HdrCodeCurve::Encode(double rho) const {
+  if (!(rho > 0)) return 0;
+  if (curve == HdrCurve::kSrgb) return 255.0 * SrgbEncode(static_cast<float>(rho / max));
+  if (curve == HdrCurve::kPower) return 255.0 * std::pow(rho / max, 1.0 / gamma);
+  return 255.0 * std::log1p(rho / floor) / std::log1p(max / floor);
+}
+
+double HdrCodeCurve::Decode(double code) const {
+  if (curve == HdrCurve::kSrgb) {
+    // SrgbDecode is defined for any value (linear toe, power above it): codes beyond the range
+    // that a model predicts decode monotonically.
+    return max * SrgbDecode(static_cast<float>(code / 255.0));
+  }
+  if (curve == HdrCurve::kPower) return max * std::copysign(std::pow(std::abs(code) / 255.0, gamma), code);
+  return floor * std::expm1(code / 255.0 * std::log1p(max / floor));
+}
+
+HdrCodeCurve FitHdrCurve(const std::vector<cv::Mat>& rho_bgr, const HdrCurveOptions& o) {
+  std::vector<float> all, positive;
+  size_t total = 0;
+  for (const auto& m : rho_bgr) total += m.total() * 3;
+  const size_t want = size_t{1} << 20;
+  const size_t stride = std::max<size_t>(1, total / want);
+  size_t i = 0;
+  for (const auto& m : rho_bgr) {
+    const float* p = m.ptr<float>();
+    const size_t n = m.total() * 3;
+    for (size_t j = 0; j < n; ++j, ++i) {
+      if (i % stride != 0) continue;
+      const float v = std::isfinite(p[j]) ? std::max(p[j], 0.0f) : 0.0f;
+      all.push_back(v);
+      if (v > 0) positive.push_back(v);
+    }
+  }
+  auto quantile = [](std::vector<float>& v, double q) {
+    if (v.empty()) return 1.0;
+    const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())));
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+    return static_cast<double>(v[k]);
+  };
+  HdrCodeCurve c;
+  c.curve = o.curve;
+  c.gamma = o.gamma;
+  c.max = quantile(all, o.high);
+  if (!(c.max > 0)) c.max = 1;
+  c.floor = std::max(quantile(positive, o.low), c.max * std::exp2(-o.max_stops));
+  c.floor = std::min(c.floor, c.max);
+  return c;
+}
+
+std::vector<cv::Mat> ReflectanceOf(const std::vector<cv::Mat>& radiance_bgr,
+                                   const std::array<double, 3>& lamp) {
+  std::vector<cv::Mat> out;
+  for (const auto& r : radiance_bgr) {
+    cv::Mat rho;
+    cv::divide(r, cv::Scalar(lamp[2], lamp[1], lamp[0]), rho);
+    out.push_back(rho);
+  }
+  return out;
+}
+
+LightSamples SamplesFromMaps(const std::vector<cv::Mat>& radiance_bgr,
+                             const std::vector<Vec3>& directions,
+                             const std::array<double, 3>& lamp, const HdrCodeCurve& curve) {
+  LightSamples s;
+  if (radiance_bgr.empty()) return s;
+  s.width = radiance_bgr[0].cols;
+  s.height = radiance_bgr[0].rows;
+  s.directions = directions;
+  const size_t lights = radiance_bgr.size();
+  const size_t pixels = s.pixels();
+  s.values.resize(pixels * lights * 3);
+  for (size_t l = 0; l < lights; ++l) {
+    const cv::Mat& m = radiance_bgr[l];
+    for (int y = 0; y < s.height; ++y) {
+      const float* row = m.ptr<float>(y);
+      for (int x = 0; x < s.width; ++x) {
+        const size_t p = static_cast<size_t>(y) * s.width + x;
+        for (int c = 0; c < 3; ++c) {
+          const double rho = row[x * 3 + (2 - c)] / lamp[c];
+          const double code = std::round(curve.Encode(rho));
+          s.values[(p * lights + l) * 3 + c] =
+              static_cast<uint8_t>(std::isfinite(code) ? std::clamp(code, 0.0, 255.0) : 0.0);
+        }
+      }
+    }
+  }
+  return s;
+}
+
+}  // namespace rig

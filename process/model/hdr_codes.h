@@ -1,0 +1,67 @@
+// Reflectance of radiance maps as 8-bit codes, for the families that model code values (PCA,
+// neural): ρ = radiance ÷ lamp radiance encoded by a curve that keeps a high dynamic range in
+// 8 bits, its parameters set from the data and stated in the model, so that loading decodes
+// back to linear reflectance (and renders give radiance, as the harmonic families' do).
+#pragma once
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "config/result.h"
+#include "process/model/light_samples.h"
+
+namespace rig {
+
+enum class HdrCurve {
+  kLog,   // code = 255 · ln(1 + ρ/floor) / ln(1 + max/floor): relative steps above the floor,
+          // linear below it, code 0 at ρ = 0
+  kSrgb,  // code = 255 · sRGB(ρ / max): the photographs' own curve over a scaled range
+  kPower, // code = 255 · (ρ / max)^(1/gamma): gamma 1 is linear
+};
+const char* HdrCurveName(HdrCurve curve);  // "log", "srgb", "power"
+Result<HdrCurve> ParseHdrCurve(const std::string& name);
+
+struct HdrCodeCurve {
+  HdrCurve curve = HdrCurve::kLog;
+  double max = 1;       // reflectance at code 255 (beyond it: clipped, a censored sample)
+  double floor = 1e-3;  // log: where the curve turns from linear to logarithmic (unused by srgb)
+  double gamma = 1;     // power: the exponent
+
+  double Encode(double rho) const;   // code, 0 .. 255 within range (not clamped, not rounded)
+  double Decode(double code) const;  // linear reflectance from a code (0 .. 255 units)
+  // Relative size of one code step at the top of the range (what quantisation costs there).
+  double TopStep() const { return Decode(255) / Decode(254) - 1; }
+};
+
+// The curve's range from the data: `max` at the `high` quantile of every sample-channel's ρ,
+// `floor` (log) at the `low` quantile of the positive ones; at least `min_stops` stops below
+// max is what the floor may lie at, so that a dim scene keeps its relative steps. The values
+// are read from a seeded sample of at most `count` sample-channels.
+struct HdrCurveOptions {
+  HdrCurve curve = HdrCurve::kLog;
+  double gamma = 1;
+  double high = 0.9999;
+  double low = 0.01;
+  double max_stops = 16;  // the floor no lower than max · 2^-max_stops
+};
+HdrCodeCurve FitHdrCurve(const std::vector<cv::Mat>& rho_bgr, const HdrCurveOptions& options);
+
+// Multi-light samples of radiance maps (CV_32FC3 BGR, one per lamp, all one size): ρ =
+// radiance ÷ lamp radiance (R, G, B) per channel, encoded and rounded to codes (negative and
+// NaN ρ as 0, beyond max as 255). The usable mask is left empty: with the thresholds of
+// HdrMaskThresholds the censored samples are exactly the clamped codes.
+LightSamples SamplesFromMaps(const std::vector<cv::Mat>& radiance_bgr,
+                             const std::vector<Vec3>& directions,
+                             const std::array<double, 3>& lamp_radiance_rgb,
+                             const HdrCodeCurve& curve);
+// Reflectance maps (radiance ÷ lamp radiance), CV_32FC3 BGR.
+std::vector<cv::Mat> ReflectanceOf(const std::vector<cv::Mat>& radiance_bgr,
+                                   const std::array<double, 3>& lamp_radiance_rgb);
+// Codes 0 and 255 are the clamped ends: a sample there is censored (below the floor of the
+// range, or beyond its max), every other code is exact to half a code.
+inline constexpr LdrMaskThresholds kHdrMaskThresholds{0, 255};
+
+}  // namespace rig

@@ -1,0 +1,195 @@
+// The PCA model of radiance maps, curve and size chosen at held-out lamps per byte.
+#include "process/model/pca/pca_hdr.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+
+#include <fmt/format.h>
+
+#include "config/log.h"
+
+namespace rig {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+HdrCodeCurve CurveOf(const PcaHdrCurveCandidate& c, const std::vector<cv::Mat>& radiance,
+                     const std::array<double, 3>& lamp, double high) {
+  HdrCurveOptions o;
+  o.curve = c.curve;
+  o.gamma = c.gamma;
+  o.high = high;
+  return FitHdrCurve(ReflectanceOf(radiance, lamp), o);
+}
+
+PcaOptions BaseOptions(const PcaHdrChoiceOptions& o) {
+  PcaOptions po;
+  po.thresholds = kHdrMaskThresholds;
+  po.threads = o.threads;
+  return po;
+}
+
+// Relative RMS of the model's ρ against the measured ρ at the held-out lamps.
+double HeldOutError(const ReflectanceModel& m, const std::vector<cv::Mat>& radiance,
+                    const std::vector<Vec3>& directions, const std::vector<int>& held,
+                    const std::array<double, 3>& lamp) {
+  double err = 0, ref = 0;
+  const cv::Scalar lamp_bgr(lamp[2], lamp[1], lamp[0]);
+  for (int l : held) {
+    cv::Mat truth;
+    cv::divide(radiance[l], lamp_bgr, truth);
+    const cv::Mat pred = m.EvaluateRho(directions[l]);
+    err += cv::norm(pred, truth, cv::NORM_L2SQR);
+    ref += cv::norm(truth, cv::NORM_L2SQR);
+  }
+  return ref > 0 ? std::sqrt(err / ref) : 0;
+}
+
+// Every candidate of one curve, fitted to the fold's maps and scored at the held-out lamps.
+Status ScoreCurve(const PcaHdrCurveCandidate& cc, const std::vector<cv::Mat>& radiance,
+                  const std::vector<Vec3>& directions, const std::vector<int>& held,
+                  const std::array<double, 3>& lamp, const PcaHdrChoiceOptions& o,
+                  std::vector<PcaHdrCandidate>* out) {
+  std::vector<cv::Mat> train;
+  std::vector<Vec3> train_dirs;
+  for (size_t l = 0; l < radiance.size(); ++l) {
+    if (std::find(held.begin(), held.end(), static_cast<int>(l)) != held.end()) continue;
+    train.push_back(radiance[l]);
+    train_dirs.push_back(directions[l]);
+  }
+  const HdrCodeCurve curve = CurveOf(cc, train, lamp, o.high);
+  const LightSamples samples = SamplesFromMaps(train, train_dirs, lamp, curve);
+  const PcaOptions po = BaseOptions(o);
+  const int kmax = *std::max_element(o.components.begin(), o.components.end());
+  RIG_ASSIGN_OR_RETURN(PcaComponents comps, ComputePcaComponents(samples, po, kmax));
+  const double pixels = static_cast<double>(samples.pixels());
+  const std::string folder = (fs::path(o.scratch) / "candidate").string();
+  for (int res : o.resolutions)
+    for (int k : o.components)
+      for (int q : o.qualities) {
+        PcaOptions c = po;
+        c.components = k;
+        c.grid_resolution = res;
+        c.jpeg_quality = q;
+        RIG_ASSIGN_OR_RETURN(PcaModel m, FitPcaWith(samples, comps, c));
+        m.set_hdr({curve, lamp, {}});
+        RIG_TRY(m.Save(folder));
+        PcaHdrCandidate r;
+        r.curve = cc.Name();
+        r.components = k;
+        r.resolution = res;
+        r.quality = q;
+        r.bytes_per_pixel = static_cast<double>(FolderBytes(folder)) / pixels;
+        RIG_ASSIGN_OR_RETURN(PcaModel back, PcaModel::Load(folder));
+        r.held_out_relative = HeldOutError(*WrapPca(std::move(back)), radiance, directions, held, lamp);
+        r.within_budget = r.bytes_per_pixel <= o.max_bytes_per_pixel;
+        out->push_back(r);
+      }
+  return Ok();
+}
+
+}  // namespace
+
+std::string PcaHdrCurveCandidate::Name() const {
+  return curve == HdrCurve::kPower ? fmt::format("power{:g}", gamma) : HdrCurveName(curve);
+}
+
+Result<PcaHdrFit> FitPcaHdrAuto(const std::vector<cv::Mat>& radiance,
+                                const std::vector<Vec3>& directions,
+                                const std::array<double, 3>& lamp,
+                                const LightFrameConfig& light_frame,
+                                const PcaHdrChoiceOptions& o) {
+  const auto t0 = Clock::now();
+  if (radiance.size() != directions.size() || radiance.size() < 8) {
+    return MakeError(ErrorCode::kInvalidInput, "pca", "{} maps for {} directions: 8 or more needed",
+                     radiance.size(), directions.size());
+  }
+  if (o.curves.empty() || o.components.empty() || o.resolutions.empty() || o.qualities.empty() ||
+      o.scratch.empty()) {
+    return MakeError(ErrorCode::kInvalidInput, "pca", "no candidates or no scratch folder");
+  }
+  std::vector<int> held;
+  for (size_t l = 0; l < radiance.size(); l += static_cast<size_t>(std::max(2, o.validation_every)))
+    held.push_back(static_cast<int>(l));
+  PcaHdrFit fit;
+  std::error_code ec;
+  fs::create_directories(o.scratch, ec);
+  for (const auto& cc : o.curves) {
+    Status st = ScoreCurve(cc, radiance, directions, held, lamp, o, &fit.candidates);
+    if (!st.ok()) {
+      fs::remove_all(o.scratch, ec);
+      return st.error();
+    }
+  }
+  fs::remove_all(o.scratch, ec);
+  for (size_t i = 0; i < fit.candidates.size(); ++i) {
+    const auto& c = fit.candidates[i];
+    if (c.within_budget && (fit.best < 0 || c.held_out_relative < fit.candidates[fit.best].held_out_relative))
+      fit.best = static_cast<int>(i);
+  }
+  bool over_budget = false;
+  if (fit.best < 0) {
+    // A small image: the grid's JSON alone may exceed the budget. The smallest candidate, said.
+    over_budget = true;
+    for (auto& c : fit.candidates) c.within_budget = true;
+    for (size_t i = 0; i < fit.candidates.size(); ++i)
+      if (fit.best < 0 || fit.candidates[i].bytes_per_pixel < fit.candidates[fit.best].bytes_per_pixel)
+        fit.best = static_cast<int>(i);
+  }
+  const double limit = fit.candidates[fit.best].held_out_relative * (1 + o.tolerance);
+  for (size_t i = 0; i < fit.candidates.size(); ++i) {
+    const auto& c = fit.candidates[i];
+    if (c.within_budget && c.held_out_relative <= limit &&
+        (fit.chosen < 0 || c.bytes_per_pixel < fit.candidates[fit.chosen].bytes_per_pixel))
+      fit.chosen = static_cast<int>(i);
+  }
+  const PcaHdrCandidate& ch = fit.candidates[fit.chosen];
+  const auto& best = fit.candidates[fit.best];
+  PcaHdrCurveCandidate cc;
+  for (const auto& c : o.curves)
+    if (c.Name() == ch.curve) cc = c;
+  const HdrCodeCurve curve = CurveOf(cc, radiance, lamp, o.high);
+  PcaOptions po = BaseOptions(o);
+  po.components = ch.components;
+  po.grid_resolution = ch.resolution;
+  po.jpeg_quality = ch.quality;
+  RIG_ASSIGN_OR_RETURN(fit.model, FitPca(SamplesFromMaps(radiance, directions, lamp, curve), po));
+  fit.model.set_hdr({curve, lamp, light_frame});
+  fit.reason = fmt::format(
+      "{} curve, {} components on a {}x{} grid at JPEG q{}: {:.4f} relative error at the {} lamps "
+      "held out, {:.2f} B/px — the smallest of {} candidates within {:.0f}% of the best under "
+      "{:.1f} B/px ({} k{} {}x{} q{}: {:.4f}, {:.2f} B/px)",
+      ch.curve, ch.components, ch.resolution, ch.resolution, ch.quality, ch.held_out_relative,
+      held.size(), ch.bytes_per_pixel, fit.candidates.size(), 100 * o.tolerance,
+      o.max_bytes_per_pixel, best.curve, best.components, best.resolution, best.resolution,
+      best.quality, best.held_out_relative, best.bytes_per_pixel);
+  if (over_budget) {
+    fit.reason = fmt::format("no candidate fits {:.1f} B/px at {}x{} (the grid is stored whatever the "
+                             "image's size), so the smallest: ", o.max_bytes_per_pixel,
+                             radiance[0].cols, radiance[0].rows) + fit.reason;
+    Log("process")->warn("pca of radiance maps: {}", fit.reason);
+  }
+  fit.time_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  Log("process")->info("pca of radiance maps: {} ({:.2f} s)", fit.reason, fit.time_s);
+  return fit;
+}
+
+std::string PcaHdrChoiceMarkdown(const PcaHdrFit& fit) {
+  std::string md = "| curve | components | grid | JPEG q | B/px | held-out relative error | |\n"
+                   "|---|---|---|---|---|---|---|\n";
+  for (size_t i = 0; i < fit.candidates.size(); ++i) {
+    const auto& c = fit.candidates[i];
+    md += fmt::format("| {} | {} | {} | {} | {:.2f} | {:.4f} | {} |\n", c.curve, c.components,
+                      c.resolution, c.quality, c.bytes_per_pixel, c.held_out_relative,
+                      static_cast<int>(i) == fit.chosen ? "**chosen**"
+                      : static_cast<int>(i) == fit.best ? "best"
+                      : c.within_budget                 ? ""
+                                                        : "over budget");
+  }
+  return md;
+}
+
+}  // namespace rig

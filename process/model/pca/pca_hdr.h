@@ -1,0 +1,68 @@
+// The PCA model of a session's radiance maps, its value curve and size chosen per byte:
+// every candidate (curve, components, grid, JPEG quality) fitted without every n-th lamp,
+// written as it ships, read back and scored in linear reflectance at the lamps held out; the
+// smallest candidate within a tolerance of the best that fits the byte budget is fitted again
+// on every lamp. Everything comes from the maps given, so run inside a fold it is a choice made
+// inside the fold. When no candidate fits the budget (a small image: the grid is stored
+// whatever the image's size) the smallest is taken and the reason says so.
+#pragma once
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "config/config.h"
+#include "config/result.h"
+#include "process/model/hdr_codes.h"
+#include "process/model/pca/pca.h"
+
+namespace rig {
+
+struct PcaHdrCurveCandidate {
+  HdrCurve curve = HdrCurve::kPower;
+  double gamma = 1.25;
+  std::string Name() const;  // "power1.25", "srgb", "log"
+};
+
+struct PcaHdrChoiceOptions {
+  std::vector<PcaHdrCurveCandidate> curves = {{HdrCurve::kPower, 1.25}, {HdrCurve::kPower, 1.5}};
+  std::vector<int> components = {18, 30};
+  std::vector<int> resolutions = {32};
+  std::vector<int> qualities = {95, 100};
+  double max_bytes_per_pixel = 30;
+  double tolerance = 0.01;   // relative: within 1% of the best held-out error
+  int validation_every = 6;  // every n-th lamp held out
+  double high = 0.9999;      // the curve's max at this quantile of ρ
+  int threads = 2;
+  std::string scratch;       // folder for the candidates' files (created; removed after)
+};
+
+struct PcaHdrCandidate {
+  std::string curve;
+  int components = 0, resolution = 0, quality = 0;
+  double bytes_per_pixel = 0;  // the fold's model as written
+  double held_out_relative = 0;  // RMS(model ρ − measured ρ) / RMS(measured ρ) at held-out lamps
+  bool within_budget = false;
+};
+
+struct PcaHdrFit {
+  PcaModel model;
+  std::vector<PcaHdrCandidate> candidates;
+  int chosen = -1, best = -1;
+  std::string reason;  // one sentence
+  double time_s = 0;
+};
+
+// `radiance`: CV_32FC3 BGR maps, one per lamp direction; ρ = radiance ÷ lamp (R, G, B).
+Result<PcaHdrFit> FitPcaHdrAuto(const std::vector<cv::Mat>& radiance,
+                                const std::vector<Vec3>& directions,
+                                const std::array<double, 3>& lamp_radiance_rgb,
+                                const LightFrameConfig& light_frame,
+                                const PcaHdrChoiceOptions& options);
+
+// Markdown table of the candidates, the choice marked.
+std::string PcaHdrChoiceMarkdown(const PcaHdrFit& fit);
+
+}  // namespace rig
