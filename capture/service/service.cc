@@ -509,6 +509,24 @@ void CaptureService::Fit(JobInfo& job, Session& session, const MapStore* maps) {
 
 // ---- Status -----------------------------------------------------------------------------
 
+namespace {
+
+// The session's model: the harmonic model.exr, or a PCA session's folder ([process]
+// model_family = "pca"), whichever is newer.
+fs::path SessionModelFile(const fs::path& root) {
+  fs::path model_file = SessionLayout{root}.model() / "model.exr";
+  std::error_code ec;
+  const fs::path pca = SessionLayout{root}.model() / "pca";
+  const auto pca_time = fs::last_write_time(pca / "info.json", ec);
+  if (!ec) {
+    const auto exr_time = fs::last_write_time(model_file, ec);
+    if (ec || pca_time > exr_time) model_file = pca;
+  }
+  return model_file;
+}
+
+}  // namespace
+
 nlohmann::json CaptureService::StatusJson() {
   std::lock_guard lock(mu_);
   nlohmann::json s;
@@ -580,17 +598,7 @@ nlohmann::json CaptureService::StatusJson() {
   int maps = 0;
   for (const Pose& g : w.grid) maps += fs::exists(SessionLayout{w.root}.Hdr(g.Name())) ? 1 : 0;
   nlohmann::json model = {{"radiance_maps", maps}, {"poses", total_poses}};
-  // The harmonic model, or a PCA session's folder ([process] model_family = "pca"): the newer.
-  fs::path model_file = SessionLayout{w.root}.model() / "model.exr";
-  {
-    std::error_code ec;
-    const fs::path pca = SessionLayout{w.root}.model() / "pca";
-    const auto pca_time = fs::last_write_time(pca / "info.json", ec);
-    if (!ec) {
-      const auto exr_time = fs::last_write_time(model_file, ec);
-      if (ec || pca_time > exr_time) model_file = pca;
-    }
-  }
+  const fs::path model_file = SessionModelFile(w.root);
   if (running && phase_ == "fitting") {
     model["phase"] = "fitting";
     model["fitting_s"] = Seconds3(Now() - w.started_s);
