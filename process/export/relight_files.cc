@@ -1,6 +1,7 @@
 // relight's web format, .ptm and .rti: the writers choose scale/bias, the readers bound every
 // size by the file's own length before allocating.
 #include "process/export/relight_files.h"
+#include "process/io/json_file.h"
 #include "config/atomic_file.h"
 
 #include <algorithm>
@@ -308,15 +309,8 @@ Status WriteRelightWeb(const std::string& folder, const RelightCoefficients& c,
 
 Result<std::vector<std::string>> DeclaredWebFiles(const std::string& folder) {
   const std::string path = (fs::path(folder) / "info.json").string();
-  std::ifstream f(path);
-  if (!f) return MakeError(ErrorCode::kNotFound, path, "cannot open");
-  nlohmann::json info;
-  try {
-    info = nlohmann::json::parse(f);
-  } catch (const nlohmann::json::exception& e) {
-    return MakeError(ErrorCode::kInvalidInput, path, "not JSON: {}", e.what());
-  }
-  if (!info.is_object() || !info.contains("nplanes") || !info["nplanes"].is_number_integer())
+  RIG_ASSIGN_OR_RETURN(nlohmann::json info, ReadJsonObjectFile(path));
+  if (!info.contains("nplanes") || !info["nplanes"].is_number_integer())
     return MakeError(ErrorCode::kInvalidInput, path, "nplanes: missing or not an integer");
   const int64_t nplanes = info["nplanes"].get<int64_t>();
   if (nplanes < 1 || nplanes > 256)
@@ -327,14 +321,9 @@ Result<std::vector<std::string>> DeclaredWebFiles(const std::string& folder) {
 }
 
 std::string RelightWebType(const std::string& folder) {
-  std::ifstream f(fs::path(folder) / "info.json");
-  if (!f) return "";
-  try {
-    const auto info = nlohmann::json::parse(f);
-    if (info.is_object() && info.contains("type") && info["type"].is_string())
-      return info["type"].get<std::string>();
-  } catch (const nlohmann::json::exception&) {
-  }
+  auto info = ReadJsonObjectFile((fs::path(folder) / "info.json").string());
+  if (info.ok() && info->contains("type") && (*info)["type"].is_string())
+    return (*info)["type"].get<std::string>();
   return "";
 }
 
@@ -352,15 +341,7 @@ Result<RelightCoefficients> ReadRelightWebInfo(const std::string& folder) {
 namespace {
 Result<RelightCoefficients> ReadRelightWebImpl(const std::string& folder, bool read_planes) {
   const std::string path = (fs::path(folder) / "info.json").string();
-  std::ifstream f(path);
-  if (!f) return MakeError(ErrorCode::kNotFound, path, "no such file");
-  nlohmann::json info;
-  try {
-    info = nlohmann::json::parse(f);
-  } catch (const nlohmann::json::exception& e) {
-    return MakeError(ErrorCode::kInvalidInput, path, "not JSON: {}", e.what());
-  }
-  if (!info.is_object()) return MakeError(ErrorCode::kInvalidInput, path, "not a JSON object");
+  RIG_ASSIGN_OR_RETURN(nlohmann::json info, ReadJsonObjectFile(path));
   auto field = [&](const char* name) -> Result<const nlohmann::json*> {
     if (!info.contains(name)) return MakeError(ErrorCode::kInvalidInput, path, "{}: missing", name);
     return &info[name];

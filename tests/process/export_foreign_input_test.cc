@@ -1,6 +1,9 @@
 // Foreign web-format folders that are truncated, of an unknown variant, or inconsistent: each
 // refused by LoadAnyModel (what rig render, rig export and rig view read through) with the file
 // and the field named, and by `rig view` with exit code 2. (.ptm / .rti: export_test.cc.)
+#include <sys/stat.h>
+
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 
@@ -10,6 +13,7 @@
 
 #include "process/export/load_any.h"
 #include "process/export/relight_files.h"
+#include "process/io/json_file.h"
 #include "process/model/light_direction.h"
 #include "process/model/pca/pca.h"
 #include "tests/support/run_rig.h"
@@ -121,6 +125,34 @@ TEST(ExportForeignInput, BilinearFoldersWithInconsistentBasisOrMaterialsAreRefus
                 "materials");
   ExpectRefused(Edited(good, "resolution", [](auto& i) { i.erase("resolution"); }), "info.json", "resolution");
   ExpectRefused(Edited(good, "mycc", [](auto& i) { i["colorspace"] = "mycc"; }), "info.json", "colorspace 'mycc'");
+}
+
+TEST(ExportForeignInput, AnInfoJsonThatIsAFifoOrHugeIsRefusedAtOnceNotRead) {
+  const std::string root = testing::FreshTempDir("foreign-fifo");
+  const std::string good = root + "/good";
+  ASSERT_TRUE(WriteRelightWeb(good, SmallPtm(), WebWriteOptions{}).ok());
+  // A FIFO named info.json: a reader that opened it blocking would wait for a writer forever.
+  const std::string fifo = root + "/fifo";
+  fs::copy(good, fifo, fs::copy_options::recursive);
+  fs::remove(fifo + "/info.json");
+  ASSERT_EQ(::mkfifo((fifo + "/info.json").c_str(), 0644), 0);
+  const auto t0 = std::chrono::steady_clock::now();
+  auto m = LoadAnyModel(fifo);
+  ASSERT_FALSE(m.ok());
+  EXPECT_THAT(m.error().ToString(), HasSubstr("info.json"));
+  EXPECT_THAT(m.error().ToString(), HasSubstr("not a regular file"));
+  auto declared = DeclaredWebFiles(fifo);
+  ASSERT_FALSE(declared.ok());
+  EXPECT_THAT(declared.error().ToString(), HasSubstr("not a regular file"));
+  EXPECT_EQ(RelightWebType(fifo), "");
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 2.0);
+  // One larger than any model's info.json: refused on its size, before it is read.
+  const std::string huge = root + "/huge";
+  fs::copy(good, huge, fs::copy_options::recursive);
+  fs::resize_file(huge + "/info.json", kMaxJsonFileBytes + 1);
+  auto h = LoadAnyModel(huge);
+  ASSERT_FALSE(h.ok());
+  EXPECT_THAT(h.error().ToString(), HasSubstr("larger than"));
 }
 
 }  // namespace

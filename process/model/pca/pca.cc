@@ -3,6 +3,7 @@
 // around, planes quantised as relight does and written as RGB JPEGs.
 #include "process/model/pca/pca.h"
 #include "config/atomic_file.h"
+#include "process/io/json_file.h"
 #include "process/io/model_limits.h"
 
 #include <algorithm>
@@ -894,14 +895,7 @@ Status CheckPlaneHeaders(const std::string& folder, int files, int width, int he
 
 Result<PcaModel> PcaModel::Load(const std::string& folder) {
   const std::string path = (fs::path(folder) / "info.json").string();
-  std::ifstream f(path);
-  if (!f) return MakeError(ErrorCode::kNotFound, path, "cannot open");
-  nlohmann::json info;
-  try {
-    info = nlohmann::json::parse(f);
-  } catch (const nlohmann::json::exception& e) {
-    return MakeError(ErrorCode::kInvalidInput, path, "not JSON: {}", e.what());
-  }
+  RIG_ASSIGN_OR_RETURN(nlohmann::json info, ReadJsonObjectFile(path));
   PcaModel m;
   try {
     if (info.at("type").get<std::string>() != "bilinear" ||

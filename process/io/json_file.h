@@ -1,0 +1,22 @@
+// A small JSON file from a folder someone else made (a model's info.json): a regular file of
+// bounded size, opened without blocking (a FIFO named info.json never hangs the reader), parsed
+// as one JSON object. Errors name the file.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "config/result.h"
+
+namespace rig {
+
+inline constexpr uint64_t kMaxJsonFileBytes = uint64_t{64} << 20;  // 64 MiB: far above any model's
+
+// kNotFound when the file is not there; kInvalidInput when it is not a regular file, is larger
+// than max_bytes, is not JSON or not a JSON object.
+Result<nlohmann::json> ReadJsonObjectFile(const std::string& path,
+                                          uint64_t max_bytes = kMaxJsonFileBytes);
+
+}  // namespace rig
