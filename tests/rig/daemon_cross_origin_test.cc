@@ -16,15 +16,13 @@
 #include "capture/service/service.h"
 #include "rig/commands/daemon_client.h"
 #include "tests/support/run_rig.h"
+#include "tests/support/browser.h"
+#include "tests/support/test_daemon.h"
 
 namespace rig {
 namespace {
 
-std::string Chromium() {
-  for (const char* p : {"/usr/bin/chromium", "/usr/bin/chromium-browser"})
-    if (fs::exists(p)) return p;
-  return "";
-}
+using testing::Chromium;
 
 // The attacker's page: every request a site can make without the daemon's consent.
 std::string AttackPage(const std::string& daemon, const std::string& session) {
@@ -61,14 +59,9 @@ TEST(DaemonCrossOrigin, APageOfAnotherOriginInChromiumStartsNoJobAndStopsNothing
   if (chromium.empty()) GTEST_SKIP() << "chromium is not installed (scripts/setup.sh installs it)";
   ClearStopForTesting();
   const std::string dir = testing::FreshTempDir("daemon_cross_origin");
-  ServiceOptions options;
-  options.sessions_root = dir;
-  CaptureService service(DaemonHooks(), options);
-  HttpOptions o;
-  o.port = 0;
-  HttpServer http(service, o);
-  ASSERT_TRUE(http.Start().ok());
-  service.Start();
+  testing::RunningDaemon running(dir);
+  CaptureService& service = running.service;
+  const HttpServer& http = running.http;
   const std::string daemon = "http://127.0.0.1:" + std::to_string(http.port());
   const std::string session = dir + "/Attacked";
 
@@ -93,9 +86,7 @@ TEST(DaemonCrossOrigin, APageOfAnotherOriginInChromiumStartsNoJobAndStopsNothing
   serving.join();
   const std::vector<JobInfo> jobs = service.Jobs();
   const size_t refused = http.refused();
-  service.Shutdown();
-  http.Stop();
-  ClearStopForTesting();
+  running.Stop();
   ASSERT_EQ(rc, 0) << cmd;
   const std::string dom = testing::ReadText(dom_path);
 

@@ -12,15 +12,13 @@
 #include "capture/service/service.h"
 #include "rig/commands/daemon_client.h"
 #include "tests/support/run_rig.h"
+#include "tests/support/browser.h"
+#include "tests/support/test_daemon.h"
 
 namespace rig {
 namespace {
 
-std::string Chromium() {
-  for (const char* p : {"/usr/bin/chromium", "/usr/bin/chromium-browser"})
-    if (fs::exists(p)) return p;
-  return "";
-}
+using testing::Chromium;
 
 int CountOf(const std::string& text, const std::string& what) {
   int n = 0;
@@ -44,14 +42,8 @@ count = 3
 h_max_deg = 30
 v_max_deg = 10
 )");
-  ServiceOptions options;
-  options.sessions_root = dir;
-  CaptureService service(DaemonHooks(), options);
-  HttpOptions o;
-  o.port = 0;
-  HttpServer http(service, o);
-  ASSERT_TRUE(http.Start().ok());
-  service.Start();
+  testing::RunningDaemon daemon(dir);
+  const HttpServer& http = daemon.http;
   DaemonAddress a;
   a.port = http.port();
   DaemonClient client(a);
@@ -90,9 +82,7 @@ v_max_deg = 10
   ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
   std::ifstream in(dom_path);
   const std::string dom((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  service.Shutdown();
-  http.Stop();
-  ClearStopForTesting();
+  daemon.Stop();
 
   // What the script wrote from /api/status: the state, the pose, the frames, the grid.
   EXPECT_NE(dom.find("data-state=\"idle\""), std::string::npos) << dom.substr(0, 2000);

@@ -31,6 +31,7 @@
 #include "process/model/harmonic/model.h"
 #include "process/model/pca/pca.h"
 #include "tests/support/run_rig.h"
+#include "tests/support/browser.h"
 #include "tests/support/synthetic_model.h"
 
 // Last: it pulls in <resolv.h>, whose _res macro breaks Eigen's headers.
@@ -40,16 +41,11 @@
 namespace rig {
 namespace {
 
+using testing::Chromium;
+
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 using testing::RunRig;
-
-std::string Chromium() {
-  if (const char* env = std::getenv("RIG_CHROMIUM")) return env;
-  for (const char* p : {"/usr/bin/chromium", "/usr/bin/chromium-browser"})
-    if (fs::exists(p)) return p;
-  return "";
-}
 
 // What the page sent back.
 struct PageRun {
