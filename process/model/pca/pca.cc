@@ -891,6 +891,16 @@ Status CheckPlaneHeaders(const std::string& folder, int files, int width, int he
   return Ok();
 }
 
+// A JSON value that must be an integer within [lo, hi] (a float past int's range would
+// overflow the conversion); the error names the file and the field.
+Result<int> IntegerIn(const nlohmann::json& v, int lo, int hi, const std::string& path,
+                      const std::string& field) {
+  if (!v.is_number_integer() || v.get<int64_t>() < lo || v.get<int64_t>() > hi)
+    return MakeError(ErrorCode::kInvalidInput, path, "{}: {} is not an integer in {}..{}", field,
+                     v.dump(), lo, hi);
+  return static_cast<int>(v.get<int64_t>());
+}
+
 }  // namespace
 
 Result<PcaModel> PcaModel::Load(const std::string& folder) {
@@ -904,25 +914,33 @@ Result<PcaModel> PcaModel::Load(const std::string& folder) {
                        "type '{}' colorspace '{}': only bilinear mrgb is read here",
                        info.at("type").get<std::string>(), info.at("colorspace").get<std::string>());
     }
-    m.width_ = info.at("width").get<int>();
-    m.height_ = info.at("height").get<int>();
-    const int k = info.at("nplanes").get<int>();
-    const int res = info.at("resolution").get<int>();
+    RIG_ASSIGN_OR_RETURN(m.width_, IntegerIn(info.at("width"), 1, 65500, path, "width"));
+    RIG_ASSIGN_OR_RETURN(m.height_, IntegerIn(info.at("height"), 1, 65500, path, "height"));
+    RIG_ASSIGN_OR_RETURN(const int k, IntegerIn(info.at("nplanes"), 1, 64, path, "nplanes"));
+    RIG_ASSIGN_OR_RETURN(const int res, IntegerIn(info.at("resolution"), 2, 64, path, "resolution"));
     if (m.width_ <= 0 || m.height_ <= 0 || m.width_ > 65500 || m.height_ > 65500 || k < 1 ||
         k > 64 || res < 2 || res > 64) {
       return MakeError(ErrorCode::kInvalidInput, path,
                        "width {} height {} nplanes {} resolution {} out of range", m.width_,
                        m.height_, k, res);
     }
-    m.jpeg_quality_ = info.value("quality", 95);
+    m.jpeg_quality_ = 95;
+    if (info.contains("quality")) {
+      RIG_ASSIGN_OR_RETURN(m.jpeg_quality_, IntegerIn(info.at("quality"), 1, 100, path, "quality"));
+    }
     PcaBasis& b = m.basis_;
     b.components = k;
     b.resolution = res;
-    b.stored = info.at("basis").get<std::vector<int>>();
+    const auto& basis = info.at("basis");
     const size_t want = static_cast<size_t>(k + 1) * res * res * 3;
-    if (b.stored.size() != want) {
+    if (!basis.is_array() || basis.size() != want) {
       return MakeError(ErrorCode::kInvalidInput, path, "'basis' has {} values, {} expected",
-                       b.stored.size(), want);
+                       basis.is_array() ? basis.size() : 0, want);
+    }
+    b.stored.reserve(want);
+    for (size_t i = 0; i < want; ++i) {
+      RIG_ASSIGN_OR_RETURN(int v, IntegerIn(basis[i], 0, 255, path, fmt::format("basis[{}]", i)));
+      b.stored.push_back(v);
     }
     const auto& mat = info.at("materials").at(0);
     const auto scale = mat.at("scale").get<std::vector<double>>();
