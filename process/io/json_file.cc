@@ -47,4 +47,12 @@ Result<nlohmann::json> ReadJsonObjectFile(const std::string& path, uint64_t max_
   return j;
 }
 
+Result<int> JsonIntegerIn(const nlohmann::json& v, int lo, int hi, const std::string& path,
+                          const std::string& field) {
+  if (!v.is_number_integer() || v.get<int64_t>() < lo || v.get<int64_t>() > hi)
+    return MakeError(ErrorCode::kInvalidInput, path, "{}: {} is not an integer in {}..{}", field,
+                     v.dump(), lo, hi);
+  return static_cast<int>(v.get<int64_t>());
+}
+
 }  // namespace rig

@@ -19,4 +19,10 @@ inline constexpr uint64_t kMaxJsonFileBytes = uint64_t{64} << 20;  // 64 MiB: fa
 Result<nlohmann::json> ReadJsonObjectFile(const std::string& path,
                                           uint64_t max_bytes = kMaxJsonFileBytes);
 
+// A JSON value that must be an integer within [lo, hi]. nlohmann's get<int>() of a float past
+// int's range (1e70) is undefined behaviour, so every integer field of a file someone else made is
+// taken through this; the error names the file and the field.
+Result<int> JsonIntegerIn(const nlohmann::json& v, int lo, int hi, const std::string& path,
+                          const std::string& field);
+
 }  // namespace rig

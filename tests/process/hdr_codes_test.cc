@@ -206,6 +206,18 @@ TEST(HdrPca, BadValuesBlockIsRefusedNamingTheFile) {
   auto loaded = LoadReflectanceModel(dir);
   ASSERT_FALSE(loaded.ok());
   EXPECT_NE(loaded.error().ToString().find("info.json"), std::string::npos) << loaded.error().ToString();
+  // A sign that is a float past int's range is refused by name, not converted (undefined
+  // behaviour under UBSan before the integer check).
+  info["rig"]["values"]["floor"] = 0.01;
+  info["rig"]["values"]["light_frame"]["h_sign"] = 1.6e70;
+  {
+    std::ofstream f(dir + "/info.json");
+    f << info.dump();
+  }
+  auto bad_sign = LoadReflectanceModel(dir);
+  ASSERT_FALSE(bad_sign.ok());
+  EXPECT_NE(bad_sign.error().ToString().find("h_sign"), std::string::npos) << bad_sign.error().ToString();
+  info["rig"]["values"]["light_frame"]["h_sign"] = 1;
   // Without the block the model is a photographs' one: sRGB codes.
   info["rig"].erase("values");
   {

@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 namespace rig {
 namespace {
@@ -285,6 +286,49 @@ TEST(Neural, RefusesInconsistentSamplesAndBadOptions) {
   auto r3 = NeuralModel::Load(TempDir("missing"));
   ASSERT_FALSE(r3.ok());
   EXPECT_EQ(r3.error().code, ErrorCode::kNotFound);
+}
+
+// Every integer of neural.json (sizes, layer widths) is taken only as an integer in its range: a
+// float past int's range (1e70) was converted by nlohmann's get<int>(), undefined behaviour
+// under UBSan; now the file is refused naming the field.
+TEST(Neural, IntegerFieldsThatAreHugeFloatsOrOutOfRangeAreRefusedByName) {
+  NeuralOptions o = TestOptions();
+  o.epochs = 1;
+  auto model = FitNeural(Scene(), o);
+  ASSERT_TRUE(model.ok()) << model.error().ToString();
+  const std::string dir = TempDir("huge_ints");
+  ASSERT_TRUE(model->Save(dir).ok());
+  nlohmann::json good;
+  {
+    std::ifstream f(dir + "/neural.json");
+    good = nlohmann::json::parse(f);
+  }
+  auto write = [&](const nlohmann::json& j) {
+    std::ofstream f(dir + "/neural.json", std::ios::trunc);
+    f << j.dump();
+  };
+  struct Case {
+    const char* field;
+    nlohmann::json value;
+  };
+  for (const Case& c : {Case{"width", 1.6e70}, Case{"height", -3}, Case{"latent", 2.5},
+                        Case{"latent", 1e300}}) {
+    nlohmann::json j = good;
+    j[c.field] = c.value;
+    write(j);
+    auto r = NeuralModel::Load(dir);
+    ASSERT_FALSE(r.ok()) << c.field;
+    EXPECT_NE(r.error().ToString().find(c.field), std::string::npos) << r.error().ToString();
+  }
+  nlohmann::json j = good;
+  j["decoder"]["layers"][0]["out"] = 1.6e70;
+  write(j);
+  auto r = NeuralModel::Load(dir);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().ToString().find("decoder.layers[0].out"), std::string::npos) << r.error().ToString();
+  write(good);
+  EXPECT_TRUE(NeuralModel::Load(dir).ok());
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

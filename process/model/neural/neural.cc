@@ -9,6 +9,7 @@
 // plane, not one for all planes (a plane with a small range keeps its 256 steps); the
 // decoder is fine-tuned on the stored codes, which NeuralRTI does not do.
 #include "process/model/neural/neural.h"
+#include "process/io/json_file.h"
 #include "process/io/model_limits.h"
 #include "config/atomic_file.h"
 
@@ -663,11 +664,12 @@ Result<NeuralModel> NeuralModel::Load(const std::string& folder) {
   std::string weights_name;
   try {
     const nlohmann::json j = nlohmann::json::parse(text.begin(), text.end());
-    if (j.at("format").get<std::string>() != "rig-neural-rti" || j.at("version").get<int>() != 1)
+    if (j.at("format").get<std::string>() != "rig-neural-rti" || !j.at("version").is_number_integer() ||
+        j.at("version").get<int64_t>() != 1)
       return MakeError(ErrorCode::kCorrupt, json_path, "not a rig-neural-rti version 1 model");
-    m.width_ = j.at("width").get<int>();
-    m.height_ = j.at("height").get<int>();
-    m.latent_ = j.at("latent").get<int>();
+    RIG_ASSIGN_OR_RETURN(m.width_, JsonIntegerIn(j.at("width"), 1, 65500, json_path, "width"));
+    RIG_ASSIGN_OR_RETURN(m.height_, JsonIntegerIn(j.at("height"), 1, 65500, json_path, "height"));
+    RIG_ASSIGN_OR_RETURN(m.latent_, JsonIntegerIn(j.at("latent"), 1, 64, json_path, "latent"));
     const std::string fmt = j.at("code_format").get<std::string>();
     if (fmt != "png" && fmt != "jpeg")
       return MakeError(ErrorCode::kCorrupt, json_path, "unknown code_format '{}'", fmt);
@@ -681,8 +683,12 @@ Result<NeuralModel> NeuralModel::Load(const std::string& folder) {
       }
     }
     weights_name = j.at("decoder").at("file").get<std::string>();
-    for (const auto& l : j.at("decoder").at("layers"))
-      dims.emplace_back(l.at("in").get<int>(), l.at("out").get<int>());
+    for (const auto& l : j.at("decoder").at("layers")) {
+      const std::string layer = fmt::format("decoder.layers[{}]", dims.size());
+      RIG_ASSIGN_OR_RETURN(const int in, JsonIntegerIn(l.at("in"), 1, 4096, json_path, layer + ".in"));
+      RIG_ASSIGN_OR_RETURN(const int out, JsonIntegerIn(l.at("out"), 1, 4096, json_path, layer + ".out"));
+      dims.emplace_back(in, out);
+    }
   } catch (const nlohmann::json::exception& e) {
     return MakeError(ErrorCode::kCorrupt, json_path, "{}", e.what());
   }

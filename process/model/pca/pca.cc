@@ -793,8 +793,8 @@ Result<PcaHdrValues> HdrValuesFromJson(const nlohmann::json& j, const std::strin
   const auto& f = j.at("light_frame");
   v.light_frame.h_offset_deg = f.at("h_offset_deg").get<double>();
   v.light_frame.v_offset_deg = f.at("v_offset_deg").get<double>();
-  v.light_frame.h_sign = f.at("h_sign").get<int>();
-  v.light_frame.v_sign = f.at("v_sign").get<int>();
+  RIG_ASSIGN_OR_RETURN(v.light_frame.h_sign, JsonIntegerIn(f.at("h_sign"), -1, 1, path, "rig.values.light_frame.h_sign"));
+  RIG_ASSIGN_OR_RETURN(v.light_frame.v_sign, JsonIntegerIn(f.at("v_sign"), -1, 1, path, "rig.values.light_frame.v_sign"));
   v.light_frame.lamp_distance_mm = f.value("lamp_distance_mm", 0.0);
   v.light_frame.field_height_mm = f.value("field_height_mm", 0.0);
   v.light_frame.surface_depth_mm = f.value("surface_depth_mm", 0.0);
@@ -891,15 +891,6 @@ Status CheckPlaneHeaders(const std::string& folder, int files, int width, int he
   return Ok();
 }
 
-// A JSON value that must be an integer within [lo, hi] (a float past int's range would
-// overflow the conversion); the error names the file and the field.
-Result<int> IntegerIn(const nlohmann::json& v, int lo, int hi, const std::string& path,
-                      const std::string& field) {
-  if (!v.is_number_integer() || v.get<int64_t>() < lo || v.get<int64_t>() > hi)
-    return MakeError(ErrorCode::kInvalidInput, path, "{}: {} is not an integer in {}..{}", field,
-                     v.dump(), lo, hi);
-  return static_cast<int>(v.get<int64_t>());
-}
 
 }  // namespace
 
@@ -914,10 +905,10 @@ Result<PcaModel> PcaModel::Load(const std::string& folder) {
                        "type '{}' colorspace '{}': only bilinear mrgb is read here",
                        info.at("type").get<std::string>(), info.at("colorspace").get<std::string>());
     }
-    RIG_ASSIGN_OR_RETURN(m.width_, IntegerIn(info.at("width"), 1, 65500, path, "width"));
-    RIG_ASSIGN_OR_RETURN(m.height_, IntegerIn(info.at("height"), 1, 65500, path, "height"));
-    RIG_ASSIGN_OR_RETURN(const int k, IntegerIn(info.at("nplanes"), 1, 64, path, "nplanes"));
-    RIG_ASSIGN_OR_RETURN(const int res, IntegerIn(info.at("resolution"), 2, 64, path, "resolution"));
+    RIG_ASSIGN_OR_RETURN(m.width_, JsonIntegerIn(info.at("width"), 1, 65500, path, "width"));
+    RIG_ASSIGN_OR_RETURN(m.height_, JsonIntegerIn(info.at("height"), 1, 65500, path, "height"));
+    RIG_ASSIGN_OR_RETURN(const int k, JsonIntegerIn(info.at("nplanes"), 1, 64, path, "nplanes"));
+    RIG_ASSIGN_OR_RETURN(const int res, JsonIntegerIn(info.at("resolution"), 2, 64, path, "resolution"));
     if (m.width_ <= 0 || m.height_ <= 0 || m.width_ > 65500 || m.height_ > 65500 || k < 1 ||
         k > 64 || res < 2 || res > 64) {
       return MakeError(ErrorCode::kInvalidInput, path,
@@ -926,7 +917,7 @@ Result<PcaModel> PcaModel::Load(const std::string& folder) {
     }
     m.jpeg_quality_ = 95;
     if (info.contains("quality")) {
-      RIG_ASSIGN_OR_RETURN(m.jpeg_quality_, IntegerIn(info.at("quality"), 1, 100, path, "quality"));
+      RIG_ASSIGN_OR_RETURN(m.jpeg_quality_, JsonIntegerIn(info.at("quality"), 1, 100, path, "quality"));
     }
     PcaBasis& b = m.basis_;
     b.components = k;
@@ -939,7 +930,7 @@ Result<PcaModel> PcaModel::Load(const std::string& folder) {
     }
     b.stored.reserve(want);
     for (size_t i = 0; i < want; ++i) {
-      RIG_ASSIGN_OR_RETURN(int v, IntegerIn(basis[i], 0, 255, path, fmt::format("basis[{}]", i)));
+      RIG_ASSIGN_OR_RETURN(int v, JsonIntegerIn(basis[i], 0, 255, path, fmt::format("basis[{}]", i)));
       b.stored.push_back(v);
     }
     const auto& mat = info.at("materials").at(0);
