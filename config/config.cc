@@ -2,8 +2,12 @@
 // VisitConfig(): the reader and the writer both walk it, so they cannot disagree.
 #include "config/config.h"
 
+#include "config/did_you_mean.h"
+
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -20,33 +24,6 @@ namespace {
 struct Range {
   double min = -1e300, max = 1e300;
 };
-
-// Levenshtein distance, for "did you mean".
-size_t EditDistance(const std::string& a, const std::string& b) {
-  std::vector<size_t> prev(b.size() + 1), cur(b.size() + 1);
-  for (size_t j = 0; j <= b.size(); ++j) prev[j] = j;
-  for (size_t i = 1; i <= a.size(); ++i) {
-    cur[0] = i;
-    for (size_t j = 1; j <= b.size(); ++j) {
-      cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (a[i - 1] != b[j - 1])});
-    }
-    std::swap(prev, cur);
-  }
-  return prev[b.size()];
-}
-
-std::string Suggest(const std::string& key, const std::vector<std::string>& known) {
-  std::string best;
-  size_t best_d = 1000;
-  for (const auto& k : known) {
-    size_t d = EditDistance(key, k);
-    // A prefix match ("exposure_time" for "exposure_times_s") counts as close.
-    if (k.rfind(key, 0) == 0 || key.rfind(k, 0) == 0) d = std::min(d, size_t{2});
-    if (d < best_d) best_d = d, best = k;
-  }
-  if (best_d <= std::max<size_t>(2, key.size() / 3)) return best;
-  return "";
-}
 
 std::string Join(const std::vector<std::string>& v, const char* sep) {
   std::string out;
@@ -115,7 +92,7 @@ class Reader {
     if (!n->is_string()) return TypeError(n, key, "a string");
     std::string s = *n->value<std::string>();
     if (!choices.empty() && std::find(choices.begin(), choices.end(), s) == choices.end()) {
-      std::string hint = Suggest(s, choices);
+      std::string hint = DidYouMean(s, choices);
       return Report(n->source(), PathOf(key),
                     fmt::format("'{}' is not one of: {}{}", s, Join(choices, ", "),
                                 hint.empty() ? "" : " (did you mean '" + hint + "'?)"));
@@ -251,7 +228,7 @@ class Reader {
     for (const auto& [k, node] : t) {
       std::string key(k.str());
       if (std::find(known.begin(), known.end(), key) != known.end()) continue;
-      std::string hint = Suggest(key, known);
+      std::string hint = DidYouMean(key, known);
       std::string where = path.empty() ? "at the top level" : "in [" + path + "]";
       Report(k.source().begin.line ? k.source() : node.source(),
              path.empty() ? key : path + "." + key,
@@ -706,8 +683,14 @@ ConfigResult LoadConfig(const std::string& path) {
   }
   std::ifstream in(path, std::ios::binary);
   if (!in) {
+    const int e = errno;
     ConfigResult r;
-    r.diagnostics.push_back({path, 0, 0, "(file)", "cannot open the file"});
+    std::error_code ec;
+    const bool missing = !std::filesystem::exists(std::filesystem::symlink_status(path, ec));
+    r.diagnostics.push_back(
+        {path, 0, 0, "(file)",
+         missing ? std::string("no such file")
+                 : fmt::format("cannot open the file: {}", std::strerror(e))});
     return r;
   }
   std::stringstream ss;

@@ -1,11 +1,45 @@
 // Shared plumbing of the commands: parsing, log level, error reporting.
 #include "rig/commands/command.h"
 
+#include <algorithm>
 #include <cstdio>
+#include <string>
+#include <vector>
 
+#include <fmt/format.h>
+
+#include "config/did_you_mean.h"
 #include "config/log.h"
 
 namespace rig {
+
+namespace {
+
+void CollectLongNames(const CLI::App& app, std::vector<std::string>* names) {
+  for (const CLI::Option* o : app.get_options())
+    for (const std::string& n : o->get_lnames()) names->push_back("--" + n);
+  for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; }))
+    CollectLongNames(*sub, names);
+}
+
+// The first "--word" on the command line that no option of the command (or its subcommands)
+// has, and the closest one it has: "" when every --word is known.
+std::string UnknownOptionHint(const CLI::App& app, int argc, char** argv) {
+  std::vector<std::string> known;
+  CollectLongNames(app, &known);
+  for (int i = 1; i < argc; ++i) {
+    std::string word = argv[i];
+    if (word == "--") break;
+    if (word.rfind("--", 0) != 0) continue;
+    word = word.substr(0, word.find('='));
+    if (std::find(known.begin(), known.end(), word) != known.end()) continue;
+    const std::string hint = DidYouMean(word, known);
+    return fmt::format("unknown option '{}'{}", word, hint.empty() ? "" : " (did you mean '" + hint + "'?)");
+  }
+  return "";
+}
+
+}  // namespace
 
 std::optional<int> ParseCommandLine(CLI::App& app, int argc, char** argv) {
   try {
@@ -15,6 +49,11 @@ std::optional<int> ParseCommandLine(CLI::App& app, int argc, char** argv) {
   } catch (const CLI::CallForAllHelp& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
+    const std::string unknown = UnknownOptionHint(app, argc, argv);
+    if (!unknown.empty()) {
+      std::fprintf(stderr, "rig %s: %s\nRun with --help for more information.\n", argv[0], unknown.c_str());
+      return 2;
+    }
     app.exit(e);
     return 2;
   }

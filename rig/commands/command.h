@@ -11,7 +11,12 @@
 
 namespace rig {
 
+// The groups `rig --help` lists the commands under, in this order.
+enum class CommandGroup { kAcquisition, kProcessing, kViewing, kBringUp, kService };
+const char* CommandGroupTitle(CommandGroup group);
+
 struct Command {
+  CommandGroup group;
   const char* name;
   const char* summary;
   // argv[0] is the command's name; returns the process exit code (0, 1, 2, 128+signal).
@@ -23,7 +28,8 @@ struct Command {
 const std::vector<Command>& Commands();
 
 // Parses a command's own options. Returns an exit code when the command must stop now
-// (0 after --help, 2 after a usage error), nothing when it should go on.
+// (0 after --help, 2 after a usage error), nothing when it should go on. A mistyped option
+// ("--ligth") is named with the closest one the command has ("did you mean '--light'?").
 std::optional<int> ParseCommandLine(CLI::App& app, int argc, char** argv);
 
 // Adds --log-level to a command; call ApplyLogLevel after parsing.

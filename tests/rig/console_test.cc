@@ -125,7 +125,58 @@ TEST(CheckConfig, AFolderIsReportedAsAFolderNotAsMissingTables) {
   EXPECT_THAT(r.output, HasSubstr("is a directory"));
   EXPECT_THAT(r.output, Not(HasSubstr("missing")));
   EXPECT_THAT(r.output, HasSubstr("1 error"));
+  // A file that is not there is named as missing, for check-config and for capture alike.
+  auto missing = RunRig("check-config " + dir + "/nothere.toml");
+  EXPECT_EQ(missing.status, 2);
+  EXPECT_THAT(missing.output, HasSubstr("nothere.toml: (file): no such file"));
+  auto capture = RunRig("capture --config " + dir + "/nothere.toml --out " + dir + "/s --dry-run");
+  EXPECT_EQ(capture.status, 2);
+  EXPECT_THAT(capture.output, HasSubstr("no such file"));
+  EXPECT_FALSE(std::filesystem::exists(dir + "/s"));
   std::filesystem::remove_all(dir);
+}
+
+// A mistyped command or option is answered with the one meant, and a non-zero exit; a word
+// close to nothing gets the list (commands) or the plain refusal (options).
+TEST(CommandLine, MistypedCommandsAndOptionsAreAnsweredWithTheOneMeant) {
+  auto cmd = RunRig("captur");
+  EXPECT_EQ(cmd.status, 2);
+  EXPECT_THAT(cmd.output, HasSubstr("unknown command 'captur' (did you mean 'capture'?)"));
+  auto far = RunRig("zzzzzzzzzz");
+  EXPECT_EQ(far.status, 2);
+  EXPECT_THAT(far.output, Not(HasSubstr("did you mean")));
+  EXPECT_THAT(far.output, HasSubstr("Acquisition:"));
+  auto opt = RunRig("render some-session --ligth 45,20 --out x.png");
+  EXPECT_EQ(opt.status, 2);
+  EXPECT_THAT(opt.output, HasSubstr("unknown option '--ligth' (did you mean '--light'?)"));
+  auto eq = RunRig("render some-session --light 45,20 --tonemapp=ward --out x.png");
+  EXPECT_EQ(eq.status, 2);
+  EXPECT_THAT(eq.output, HasSubstr("unknown option '--tonemapp' (did you mean '--tonemap'?)"));
+  // A subcommand's options count as known (collection init's).
+  auto sub = RunRig("collection init --help");
+  EXPECT_EQ(sub.status, 0) << sub.output;
+}
+
+// rig --help lists every command once, under its group, names aligned in one column.
+TEST(CommandLine, HelpGroupsEveryCommandOnceWithAlignedSummaries) {
+  auto help = RunRig("--help");
+  ASSERT_EQ(help.status, 0);
+  for (const char* group : {"Acquisition:", "Processing:", "Viewing and export:", "Bring-up", "Service:"})
+    EXPECT_THAT(help.output, HasSubstr(group));
+  std::istringstream lines(help.output);
+  std::string line;
+  size_t column = 0;
+  int commands = 0;
+  while (std::getline(lines, line)) {
+    if (line.rfind("  ", 0) != 0 || line.rfind("  --", 0) == 0) continue;
+    const size_t name_end = line.find(' ', 2);
+    const size_t summary = line.find_first_not_of(' ', name_end);
+    ASSERT_NE(summary, std::string::npos) << line;
+    if (column == 0) column = summary;
+    EXPECT_EQ(summary, column) << line;
+    ++commands;
+  }
+  EXPECT_GE(commands, 20);
 }
 
 }  // namespace
