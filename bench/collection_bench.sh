@@ -12,7 +12,7 @@ n=${2:-4}
 width=${3:-160}
 height=${4:-120}
 rig="$build/rig/rig"
-lp_src="$here/../shared/data/rti/neuralrti-example"
+lp_src="${ICON:?set ICON to the NeuralRTI example capture folder (docs/data.md)}"
 work=$(mktemp -d /tmp/rig-collection-bench.XXXXXX)
 trap 'rm -rf "$work"' EXIT
 command -v snakemake > /dev/null || { echo "collection_bench: snakemake is not installed" >&2; exit 2; }

@@ -5,7 +5,11 @@
 # Outputs go to out/demo-<time>/ (a new session each run: nothing is ever overwritten).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/build.sh >/dev/null
+start=$(date +%s)
+echo "== build: the rig executable only (a first build on a quiet 2-core machine takes about"
+echo "   RIG_DEMO_BUILD_MINUTES minutes; scripts/test.sh builds the tests and benchmarks)"
+bash scripts/build.sh rig
+echo "== built in $(( $(date +%s) - start )) s"
 rig=build/rig/rig
 session="out/demo-$(date +%Y%m%d-%H%M%S)"
 mkdir -p out

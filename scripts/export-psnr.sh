@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# What each export format loses on the real icon (../shared/data/rti/neuralrti-example):
+# What each export format loses on the real icon ($ICON: the NeuralRTI
+# example capture, docs/data.md):
 # fits PTM and HSH (order 2, sRGB space, least squares, downsampled 2x), exports each to the
 # web format at several JPEG qualities (YCbCr as relight writes, and RGB-space planes), .ptm
 # and .rti, and prints rig export's "as written, read back" PSNR over the 72 capture lights.
@@ -7,7 +8,7 @@
 set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
 rig="${1:-$here/build}/rig/rig"
-lp="$here/../shared/data/rti/neuralrti-example/dirs.lp"
+lp="${ICON:?set ICON to the NeuralRTI example capture folder (docs/data.md)}/dirs.lp"
 out="$(mktemp -d)"
 trap 'rm -rf "$out"' EXIT
 for basis in ptm hsh; do

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# docs/images/viewer.png: the relighting page of the real icon (../shared/data/rti/
-# neuralrti-example, fitted with rig fit's default PCA model), two lamps, as headless
+# docs/images/viewer.png: the relighting page of the real icon ($ICON: the NeuralRTI
+# example capture, docs/data.md; fitted with rig fit's default PCA model), two lamps, as headless
 # Chromium (SwiftShader) draws it from file://.
 # Usage: scripts/viewer-screenshot.sh [BUILD_DIR] [OUT.png]
 set -euo pipefail
@@ -9,7 +9,7 @@ rig="${1:-$here/build}/rig/rig"
 png="${2:-$here/docs/images/viewer.png}"
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
-"$rig" fit --lp "$here/../shared/data/rti/neuralrti-example/dirs.lp" --out "$tmp/icon" > /dev/null
+"$rig" fit --lp "${ICON:?set ICON to the NeuralRTI example capture folder (docs/data.md)}/dirs.lp" --out "$tmp/icon" > /dev/null
 "$rig" view "$tmp/icon" --out "$tmp/view"
 url="file://$tmp/view/index.html?light=-0.5,0.45,0.74,1,0.85,0.7,1;0.6,-0.2,0.77,0.45,0.6,1,0.8"
 chromium --headless=new --no-sandbox --disable-gpu --use-angle=swiftshader --enable-unsafe-swiftshader \

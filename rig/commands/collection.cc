@@ -60,8 +60,9 @@ std::string YamlList(const std::vector<std::string>& v) {
 
 int RunInit(int argc, char** argv) {
   CLI::App app{"Write a collection folder: DIR/config.yaml (the root to search, the export "
-               "formats, per-job threads and memory) and DIR/Snakefile, which includes the "
-               "workflow installed with rig (share/rig/Snakefile). Then run Snakemake in DIR. "
+               "formats, per-job threads and memory), DIR/Snakefile, and a copy of the workflow "
+               "installed with rig (share/rig/Snakefile -> DIR/workflow/, its local and Slurm "
+               "profiles -> DIR/profiles/). Then run Snakemake in DIR. "
                "Nothing else is written; existing files are never replaced.",
                "rig collection init"};
   std::string dir, root, level;
@@ -97,7 +98,14 @@ int RunInit(int argc, char** argv) {
     return ReportError("collection", MakeError(ErrorCode::kInvalidInput, root, "--root: no such folder"));
   }
   const fs::path d(dir), cfg = d / "config.yaml", snakefile = d / "Snakefile";
-  for (const auto& p : {cfg, snakefile}) {
+  // The workflow and its profiles are copied into the collection (workflow/, profiles/): it
+  // keeps working when the build folder that made it moves or is removed, and reruns with the
+  // workflow it started with.
+  const std::vector<std::pair<fs::path, fs::path>> copies = {
+      {*share / "Snakefile", d / "workflow" / "Snakefile"},
+      {*share / "local" / "config.yaml", d / "profiles" / "local" / "config.yaml"},
+      {*share / "slurm" / "config.yaml", d / "profiles" / "slurm" / "config.yaml"}};
+  for (const auto& p : {cfg, snakefile, copies[0].second, copies[1].second, copies[2].second}) {
     if (fs::exists(p, ec)) {
       return ReportError("collection", MakeError(ErrorCode::kInvalidInput, p.string(),
                                                  "exists; nothing is overwritten"));
@@ -134,22 +142,28 @@ int RunInit(int argc, char** argv) {
       YamlList(formats), YamlList(lp_fit_args), no_eval_sessions ? "false" : "true",
       YamlList(eval_args), no_eval_lp ? "false" : "true", lp_every);
   const std::string sf = fmt::format(
-      "# Written by `rig collection init`: the workflow is rig's own, installed with it.\n"
+      "# Written by `rig collection init`: the workflow is rig's own ({}), copied here.\n"
       "configfile: \"config.yaml\"\n"
-      "include: {}\n\n"
+      "include: \"workflow/Snakefile\"\n\n"
       "# The default target (an included file's rules never are): the collection's report.\n"
       "rule collection:\n"
       "    input:\n"
       "        rules.all.input,\n",
-      YamlQuote((*share / "Snakefile").string()));
+      (*share / "Snakefile").string());
+  for (const auto& [from, to] : copies) {
+    fs::create_directories(to.parent_path(), ec);
+    if (ec) return ReportError("collection", MakeError(ErrorCode::kIo, to.parent_path().string(), "cannot create: {}", ec.message()));
+    Status st = CopyFileNoFollow(from, to, uint64_t{1} << 20);
+    if (!st.ok()) return ReportError("collection", st.error());
+  }
   for (const auto& [p, text] : {std::pair{cfg, yaml}, std::pair{snakefile, sf}}) {
     Status st = WriteFileAtomic(p, text, /*overwrite=*/false);
     if (!st.ok()) return ReportError("collection", st.error());
   }
-  std::printf("rig collection: wrote %s and %s\n", cfg.string().c_str(), snakefile.string().c_str());
+  std::printf("rig collection: wrote %s, %s, %s/workflow/ and %s/profiles/\n", cfg.string().c_str(),
+              snakefile.string().c_str(), dir.c_str(), dir.c_str());
   std::printf("  on this machine:  cd %s && snakemake -j2 --keep-going --rerun-incomplete\n", dir.c_str());
-  std::printf("  on Slurm:         cd %s && snakemake --profile %s\n", dir.c_str(),
-              (*share / "slurm").string().c_str());
+  std::printf("  on Slurm:         cd %s && snakemake --profile profiles/slurm\n", dir.c_str());
   std::printf("  the report:       %s/report/index.html (rule 'report', or rig collection report %s)\n",
               dir.c_str(), dir.c_str());
   return 0;

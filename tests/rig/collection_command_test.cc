@@ -153,6 +153,12 @@ class CollectionCommand : public ::testing::Test {
                     " --formats relight,ptm --session-evaluate-arg=--quick " + extra);
     EXPECT_EQ(r.status, 0) << r.output;
     EXPECT_THAT(r.output, HasSubstr("snakemake -j2"));
+    // The workflow and its profiles are copied in: nothing points into the build tree.
+    EXPECT_EQ(testing::ReadText((c / "workflow/Snakefile").string()),
+              testing::ReadText(testing::SourceDir() + "/share/rig/Snakefile"));
+    EXPECT_EQ(testing::ReadText((c / "profiles/slurm/config.yaml").string()),
+              testing::ReadText(testing::SourceDir() + "/share/rig/slurm/config.yaml"));
+    EXPECT_THAT(testing::ReadText((c / "Snakefile").string()), HasSubstr("include: \"workflow/Snakefile\""));
     return c;
   }
   static fs::path* dir_;
@@ -234,7 +240,7 @@ TEST_F(CollectionCommand, RerunsOnlyTheStepsOfTheSessionWhoseProcessTableChanged
   for (const auto& k : frame_jobs) EXPECT_EQ(k.find("S1"), std::string::npos) << k;
 
   // The Slurm profile, as far as this machine goes: the dry run plans the same jobs.
-  SnakeRun slurm = Snakemake(c, "-n --profile " + testing::SourceDir() + "/share/rig/slurm");
+  SnakeRun slurm = Snakemake(c, "-n --profile profiles/slurm");
   ASSERT_EQ(slurm.status, 0) << slurm.log;
   EXPECT_EQ(Keys(Jobs(slurm.log)), frame_jobs) << slurm.log;
   EXPECT_THAT(slurm.log, HasSubstr("mem_mb=500"));  // the fit job's declared memory
