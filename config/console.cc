@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdlib>
 #include <mutex>
 #include <vector>
 
@@ -71,9 +72,47 @@ void EraseLocked() {
   c.drawn = false;
 }
 
+// Off a terminal (a pipe, a log file under Snakemake, cron, nohup): one plain line every few
+// seconds ($RIG_PROGRESS_EVERY_S, default 5) for the innermost task, once it has run that long.
+double LineEverySeconds() {
+  static const double every = [] {
+    const char* env = std::getenv("RIG_PROGRESS_EVERY_S");
+    char* end = nullptr;
+    const double v = env ? std::strtod(env, &end) : 0;
+    return env && end != env && v > 0 && v < 1e6 ? v : 5.0;
+  }();
+  return every;
+}
+
+std::string PlainLine(const Task& t) {
+  const double elapsed = std::chrono::duration<double>(Clock::now() - t.start).count();
+  const int64_t counted = t.done - t.done_at_start;
+  const double left = counted > 0 && t.total > 0
+                          ? elapsed / static_cast<double>(counted) *
+                                static_cast<double>(std::max<int64_t>(0, t.total - t.done))
+                          : -1;
+  const int pct = t.total > 0 ? static_cast<int>(100 * std::min(t.done, t.total) / t.total) : 0;
+  std::string line = fmt::format("progress: {} {}/{} ({}%)", t.label, t.done, t.total, pct);
+  if (!t.detail.empty()) line += ", " + t.detail;
+  return line + fmt::format(", {} elapsed, {} left", console_internal::Clock(elapsed),
+                            console_internal::Clock(left));
+}
+
+void PlainLineLocked() {
+  Console& c = C();
+  const Task& t = c.tasks.back();
+  const auto now = Clock::now();
+  const auto every = std::chrono::duration<double>(LineEverySeconds());
+  if (now - t.start < every || now - c.last_draw < every) return;
+  std::fprintf(stderr, "%s\n", PlainLine(t).c_str());
+  std::fflush(stderr);
+  c.last_draw = now;
+}
+
 void DrawLocked(bool force) {
   Console& c = C();
-  if (!c.enabled || !c.tty || c.tasks.empty()) return;
+  if (!c.enabled || c.tasks.empty()) return;
+  if (!c.tty) return PlainLineLocked();
   auto now = Clock::now();
   if (!force && c.drawn && now - c.last_draw < std::chrono::milliseconds(100)) return;
   std::string line = Render(c.tasks.back());

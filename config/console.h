@@ -4,7 +4,10 @@
 // console log line (config/log.cc's sink) and every ConsoleLine() first erases the bar, writes
 // its line, and draws the bar again below it. Nothing is drawn unless progress is enabled for
 // the process (the command decides) and stderr is a terminal: piped output carries no escape
-// codes. Library code counts its work with a ProgressTask and never knows whether it is shown.
+// codes. Off a terminal (a pipe, a log under Snakemake, cron or nohup) the same progress is a
+// plain line every few seconds instead ("progress: radiance maps 12/40 (30%), 00:12 elapsed,
+// 00:25 left"; $RIG_PROGRESS_EVERY_S, default 5), once a task has run that long. Library code
+// counts its work with a ProgressTask and never knows how it is shown.
 #pragma once
 
 #include <cstdint>

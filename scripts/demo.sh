@@ -14,7 +14,7 @@ rig=build/rig/rig
 session="out/demo-$(date +%Y%m%d-%H%M%S)"
 mkdir -p out
 echo "== capture (dry run on the simulated rig) -> $session"
-$rig capture --config config/sim.toml --out "$session" --dry-run --no-progress
+$rig capture --config config/sim.toml --out "$session" --dry-run
 ln -sfn "$(basename "$session")" out/latest
 echo "== relight"
 mkdir -p "$session/render"

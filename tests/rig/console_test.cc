@@ -80,6 +80,16 @@ TEST(Console, PipedOutputOfLongStepsHasNoProgressEscapeCodes) {
   EXPECT_THAT(r.output, Not(HasSubstr("\r")));
   EXPECT_THAT(r.output, Not(HasSubstr("\033[")));
   EXPECT_THAT(r.output, Not(HasSubstr("ETA")));
+  // Off a terminal, progress is a plain line every few seconds ($RIG_PROGRESS_EVERY_S; here
+  // every 0.05 s, so the 40 maps and the fit take long enough to print some).
+  setenv("RIG_PROGRESS_EVERY_S", "0.05", 1);
+  auto lines = RunRig("process " + s + " --force");
+  setenv("RIG_PROGRESS_EVERY_S", "100000", 1);  // as tests/test_env.cc sets it
+  ASSERT_EQ(lines.status, 0) << lines.output;
+  EXPECT_THAT(lines.output, HasSubstr("progress: radiance maps "));
+  EXPECT_THAT(lines.output, HasSubstr(" elapsed, "));
+  EXPECT_THAT(lines.output, Not(HasSubstr("\r")));
+  EXPECT_THAT(lines.output, Not(HasSubstr("\033[")));
   std::filesystem::remove_all(dir);
 }
 
