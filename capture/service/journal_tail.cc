@@ -77,7 +77,7 @@ JournalProgress JournalTail::Progress() const {
       p.stored.insert(key);
       const std::string file = r.value("file", "");
       const std::string ext = std::filesystem::path(file).extension().string();
-      if (ext == ".jpg" || ext == ".png" || ext == ".tif") {
+      if (ext == ".jpg" || ext == ".png" || ext == ".tif" || ext == ".tiff" || ext == ".jpeg") {
         p.last_frame_file = file;
         p.last_frame_pose = key.first;
       }

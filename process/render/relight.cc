@@ -236,13 +236,19 @@ Result<RenderOutput> Relight(const ReflectanceModel& model, const RelightRequest
   }
   if (!request.sweep.empty()) {
     if (!fixable) return output;
-    // One mapping for the whole sweep: the linear scale Ward/linear settle on for the
-    // brightest frame, applied to every frame.
+    // One mapping for the whole sweep, the brightest frame's, applied to every frame (a
+    // mapping per frame would make the lamp's motion flicker): Ward's curve from that frame's
+    // histogram when Ward was asked for, else its linear scale.
     size_t brightest = 0;
     double best = -1;
     for (size_t i = 0; i < output.radiance.size(); ++i) {
       const double m = cv::mean(Luminance(output.radiance[i]))[0];
       if (m > best) best = m, brightest = i;
+    }
+    if (method == ToneMapMethod::kWard) {
+      RIG_TRY(FixMapping(output.radiance[brightest], &output.tonemap));
+      output.display_note = "one Ward mapping for the sweep (its brightest frame's histogram)";
+      return output;
     }
     ToneMapReport report;
     ToneMapOptions linear = request.tonemap;
@@ -297,7 +303,7 @@ RenderFileKind RenderFileKindOf(const std::string& path) {
   std::string ext = fs::path(path).extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (ext == ".exr") return RenderFileKind::kExr;
-  if (ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tif") return RenderFileKind::kPicture;
+  if (ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tif" || ext == ".tiff") return RenderFileKind::kPicture;
   if (ext == ".avi") return RenderFileKind::kVideo;
   return RenderFileKind::kUnknown;
 }

@@ -144,7 +144,11 @@ struct RenderArgs {
 };
 
 void AddRenderOptions(CLI::App& app, RenderArgs* a) {
-  app.add_option("MODEL", a->source, "a model EXR (rig fit) or a session folder (its model/model.exr)")
+  app.add_option("MODEL", a->source,
+                 "what is relit: a session folder (its model: model/pca/ or model/model.exr); a "
+                 "model EXR of rig fit (SH, HSH, PTM); a model folder in relight's web format "
+                 "(ptm, hsh, bilinear/PCA: rig fit --lp or relight-cli); a .ptm or .rti file "
+                 "(RTIViewer's); a neural model folder (neural.json)")
       ->required();
   app.add_option("--light", a->lights,
                  "lamp H,V[,R,G,B[,I]] in rig angles (deg), or dir=X,Y,Z[,R,G,B[,I]] (unit "

@@ -116,9 +116,31 @@ TEST(Relight, SweepRunsAlongItsPathWithOneToneMappingAndIsWrittenOnce) {
   // Each frame: the held lamp plus the moving one.
   const cv::Mat third = RenderOne(model, {Lamp(30, 0), path[2]});
   EXPECT_LT(cv::norm(out->radiance[2], third, cv::NORM_INF), 1e-5 * cv::norm(third, cv::NORM_INF));
-  // Ward on a sweep: one linear scale for every frame.
-  EXPECT_EQ(out->tonemap.method, ToneMapMethod::kLinear);
-  EXPECT_GT(out->tonemap.linear_scale, 0);
+  // Ward on a sweep: one Ward mapping for every frame (not replaced by a linear scale), the
+  // brightest frame's, so that frame's picture is its own Ward picture.
+  EXPECT_EQ(out->tonemap.method, ToneMapMethod::kWard);
+  ASSERT_NE(out->tonemap.ward_fixed, nullptr);
+  EXPECT_NE(out->display_note.find("Ward"), std::string::npos);
+  {
+    size_t brightest = 0;
+    double best = -1;
+    for (size_t i = 0; i < out->radiance.size(); ++i) {
+      const double m = cv::mean(Luminance(out->radiance[i]))[0];
+      if (m > best) best = m, brightest = i;
+    }
+    ToneMapOptions own = out->tonemap;
+    own.ward_fixed = nullptr;
+    auto fixed = ToneMap(out->radiance[brightest], out->tonemap, nullptr);
+    auto adapted = ToneMap(out->radiance[brightest], own, nullptr);
+    ASSERT_TRUE(fixed.ok() && adapted.ok());
+    EXPECT_LE(cv::norm(*fixed, *adapted, cv::NORM_INF), 1.0);
+  }
+  // Linear on a sweep: one linear scale.
+  request.tonemap.method = ToneMapMethod::kLinear;
+  auto lin = Relight(*WrapHarmonic(model), request);
+  ASSERT_TRUE(lin.ok());
+  EXPECT_EQ(lin->tonemap.method, ToneMapMethod::kLinear);
+  EXPECT_GT(lin->tonemap.linear_scale, 0);
 
   const std::string dir = testing::FreshTempDir("relight");
   const std::string video = dir + "/sweep.avi";
@@ -138,6 +160,8 @@ TEST(Relight, SweepRunsAlongItsPathWithOneToneMappingAndIsWrittenOnce) {
 TEST(Relight, OutputKindsFollowTheExtension) {
   EXPECT_EQ(RenderFileKindOf("a/b.EXR"), RenderFileKind::kExr);
   EXPECT_EQ(RenderFileKindOf("b.jpeg"), RenderFileKind::kPicture);
+  EXPECT_EQ(RenderFileKindOf("b.tif"), RenderFileKind::kPicture);
+  EXPECT_EQ(RenderFileKindOf("b.TIFF"), RenderFileKind::kPicture);
   EXPECT_EQ(RenderFileKindOf("b.avi"), RenderFileKind::kVideo);
   EXPECT_EQ(RenderFileKindOf("b.bmp"), RenderFileKind::kUnknown);
   EXPECT_EQ(SweepFrameDir("out/s.avi"), "out/s");

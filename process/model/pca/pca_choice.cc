@@ -276,12 +276,11 @@ Result<PcaChoice> ChoosePca(const PcaChoiceInput& in, const PcaComponents& comps
   choice.options.jpeg_quality = ch.quality;
   choice.reason = fmt::format(
       "{} components on a {}x{} grid at JPEG q{}: {:.2f} dB at held-out lights (every {}th "
-      "light of the fit held out), {:.2f} B/px — the smallest of {} candidates within {:.2f} dB "
-      "of the best under {:.2f} B/px ({} components, {}x{}, q{}: {:.2f} dB, {:.2f} B/px)",
+      "light of the fit held out) — the smallest of {} candidates within {:.2f} dB of the best "
+      "in the budget of {:.2f} B/px (the best: {} components, {}x{}, q{}, {:.2f} dB)",
       ch.components, ch.resolution, ch.resolution, ch.quality, ch.psnr_db, o.validation_every,
-      ch.bytes_per_pixel, choice.candidates.size(), o.tolerance_db, o.max_bytes_per_pixel,
-      best.components, best.resolution, best.resolution, best.quality, best.psnr_db,
-      best.bytes_per_pixel);
+      choice.candidates.size(), o.tolerance_db, o.max_bytes_per_pixel, best.components,
+      best.resolution, best.resolution, best.quality, best.psnr_db);
   if (!best.within_budget) {
     choice.reason = fmt::format("no candidate fits {:.2f} B/px; the smallest: {}",
                                 o.max_bytes_per_pixel, choice.reason);
