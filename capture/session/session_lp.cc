@@ -5,7 +5,9 @@
 #include <optional>
 #include <vector>
 
+#include <fmt/format.h>
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "capture/plan/pose.h"
 #include "capture/session/session_store.h"
@@ -14,13 +16,15 @@
 #include "process/io/exr_io.h"
 #include "process/io/image_io.h"
 #include "process/model/light_direction.h"
+#include "process/model/lp.h"
 #include "process/model/samples.h"
 
 namespace rig {
 
 namespace fs = std::filesystem;
 
-Result<SessionLpExport> ExportSessionLp(const fs::path& session, const std::string& out) {
+Result<SessionLpExport> ExportSessionLp(const fs::path& session, const std::string& out,
+                                        LpImageFormat format) {
   const SessionLayout layout{session};
   std::error_code ec;
   if (!fs::is_directory(layout.hdr(), ec)) {
@@ -69,17 +73,24 @@ Result<SessionLpExport> ExportSessionLp(const fs::path& session, const std::stri
   if (ec) return MakeError(ErrorCode::kIo, out, "cannot create: {}", ec.message());
   std::vector<std::string> names;
   std::vector<Vec3> dirs;
+  std::vector<std::string> lifted;
   for (size_t i = 0; i < maps.size(); ++i) {
     cv::Mat picture(maps[i].size(), CV_8UC3);
     const float* in = maps[i].ptr<float>();
     uint8_t* o = picture.ptr<uint8_t>();
     for (size_t k = 0; k < maps[i].total() * 3; ++k)
       o[k] = static_cast<uint8_t>(std::lround(255.0f * SrgbEncode(std::clamp(in[k] / white, 0.0f, 1.0f))));
-    const std::string name = poses[i].second.Name() + ".png";
+    const bool jpeg = format == LpImageFormat::kJpeg;
+    const std::string name = poses[i].second.Name() + (jpeg ? ".jpg" : ".png");
     const std::string path = (fs::path(out) / name).string();
-    if (Status st = WriteImageFile(path, picture); !st.ok()) return st.error();
+    const std::vector<int> params =
+        jpeg ? std::vector<int>{cv::IMWRITE_JPEG_QUALITY, 95} : std::vector<int>{};
+    if (Status st = WriteImageFile(path, picture, params); !st.ok()) return st.error();
     names.push_back(name);
-    dirs.push_back(LightDirection(poses[i].second.h_deg, poses[i].second.v_deg, frame));
+    Vec3 d = LightDirection(poses[i].second.h_deg, poses[i].second.v_deg, frame);
+    if (auto before = LiftToLowestElevation(&d))
+      lifted.push_back(fmt::format("{} ({:.3f} deg)", poses[i].second.Name(), *before));
+    dirs.push_back(d);
   }
   const std::string lp = (fs::path(out) / "dirs.lp").string();
   if (Status st = WriteLp(lp, names, dirs); !st.ok()) return st.error();
@@ -89,6 +100,7 @@ Result<SessionLpExport> ExportSessionLp(const fs::path& session, const std::stri
   r.width = maps[0].cols;
   r.height = maps[0].rows;
   r.white = white;
+  r.lifted = std::move(lifted);
   return r;
 }
 

@@ -12,9 +12,20 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "config/log.h"
 #include "process/model/samples.h"
 
 namespace rig {
+
+std::optional<double> LiftToLowestElevation(Vec3* d) {
+  const double z = std::clamp((*d)[2], -1.0, 1.0);
+  const double elevation = std::asin(z) * 180 / M_PI;
+  if (!(elevation >= -kHorizonToleranceDeg && elevation < kLowestElevationDeg)) return std::nullopt;
+  const double azimuth = std::atan2((*d)[1], (*d)[0]);
+  const double e = kLowestElevationDeg * M_PI / 180;
+  *d = {std::cos(e) * std::cos(azimuth), std::cos(e) * std::sin(azimuth), std::sin(e)};
+  return elevation;
+}
 
 Result<std::vector<LpEntry>> ReadLp(const std::string& path) {
   std::ifstream f(path);
@@ -64,6 +75,10 @@ Result<std::vector<LpEntry>> ReadLp(const std::string& path) {
                        e.direction[1], e.direction[2]);
     }
     for (auto& c : e.direction) c /= n;
+    if (auto before = LiftToLowestElevation(&e.direction)) {
+      Log("process")->warn("{}: light at elevation {:.3f} deg, at the horizon within {} deg: taken "
+                           "at {} deg", where, *before, kHorizonToleranceDeg, kLowestElevationDeg);
+    }
     std::filesystem::path p(e.image);
     if (p.is_relative()) p = folder / p;
     e.image = p.string();

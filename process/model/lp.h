@@ -1,6 +1,7 @@
 // RTI light files (.lp) and their images: the capture every photograph-fitting family reads.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -17,7 +18,19 @@ struct LpEntry {
   int line = 0;       // line in the .lp file
 };
 
-// A count on the first line, then `<image> <x> <y> <z>` per line. Errors name file:line.
+// Lights at the horizon. A light calibrated a fraction of a degree below the horizon is
+// calibration noise, not a light from below; and relight's HSH fit writes NaN for a light
+// exactly at z = 0. So a direction whose elevation lies in [-kHorizonToleranceDeg,
+// kLowestElevationDeg) is lifted to kLowestElevationDeg (its azimuth kept), both on reading an
+// .lp and on writing one; lower lights are left as they are (the hemispherical families refuse
+// them, sh and ptm fit them).
+inline constexpr double kHorizonToleranceDeg = 1.0;
+inline constexpr double kLowestElevationDeg = 0.25;
+// Lifts `d` (a unit vector) as above; returns its elevation before, in degrees, when it moved it.
+std::optional<double> LiftToLowestElevation(Vec3* d);
+
+// A count on the first line, then `<image> <x> <y> <z>` per line. Errors name file:line. A light
+// within the horizon's tolerance is lifted (LiftToLowestElevation) with a warning naming the line.
 Result<std::vector<LpEntry>> ReadLp(const std::string& path);
 
 struct RtiImages {

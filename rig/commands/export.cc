@@ -28,6 +28,7 @@
 #include "process/export/load_any.h"
 #include "process/export/relight_files.h"
 #include "process/model/harmonic/model.h"
+#include "process/model/lp.h"
 #include "rig/commands/command.h"
 #include "config/console.h"
 
@@ -37,7 +38,8 @@ namespace {
 namespace fs = std::filesystem;
 
 struct ExportArgs {
-  std::string source, format, out, variant = "rgb", basis, log_level, tiles = "auto";
+  std::string source, format, out, variant = "rgb", basis, log_level, tiles = "auto",
+      lp_images = "jpg";
   int hsh_terms = 0, quality = 98;  // q98: 48.2 dB for the icon's web PTM (q95: 44.1)
   bool jpeg_rgb = false;
 };
@@ -71,6 +73,9 @@ int RunExport(int argc, char** argv) {
   app.add_option("--format", a.format,
                  "relight, ptm or rti; lp: a SESSION's radiance maps as 8-bit sRGB images + dirs.lp")
       ->required();
+  app.add_option("--lp-images", a.lp_images,
+                 "--format lp: jpg (default, JPEG q95: what relight-cli reads) or png (lossless)")
+      ->check(CLI::IsMember({"jpg", "png"}));
   app.add_option("--out", a.out, "the folder (relight) or file (.ptm, .rti) to write; must not exist")
       ->required();
   app.add_option("--ptm-variant", a.variant,
@@ -100,10 +105,19 @@ int RunExport(int argc, char** argv) {
                                            "exists; choose another --out (nothing is overwritten)"));
   }
   if (a.format == "lp") {
-    auto lp = ExportSessionLp(a.source, a.out);
+    auto lp = ExportSessionLp(a.source, a.out, a.lp_images == "png" ? LpImageFormat::kPng : LpImageFormat::kJpeg);
     if (!lp.ok()) return ReportError("export", lp.error());
-    std::printf("rig export: wrote %s and %zu images (%dx%d, 8-bit sRGB, radiance %.4g = white) to %s\n",
-                lp->lp.c_str(), lp->images, lp->width, lp->height, lp->white, a.out.c_str());
+    std::printf("rig export: wrote %s and %zu images (%dx%d, 8-bit sRGB %s, radiance %.4g = white) to %s\n",
+                lp->lp.c_str(), lp->images, lp->width, lp->height, a.lp_images == "png" ? "PNG" : "JPEG q95",
+                lp->white, a.out.c_str());
+    if (!lp->lifted.empty()) {
+      std::string poses;
+      for (const auto& p : lp->lifted) poses += (poses.empty() ? "" : ", ") + p;
+      std::fprintf(stderr,
+                   "rig export: warning: %zu pose(s) at the horizon written at %.2f deg elevation "
+                   "(relight's HSH fit writes NaN for a light at z = 0): %s\n",
+                   lp->lifted.size(), kLowestElevationDeg, poses.c_str());
+    }
     return 0;
   }
   auto source = ResolveRenderSource(a.source);

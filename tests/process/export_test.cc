@@ -405,8 +405,33 @@ TEST(ExportLp, WrittenLpReadsBackWithItsDirections) {
   ASSERT_EQ(lp->size(), lights.size());
   for (size_t i = 0; i < lights.size(); ++i) {
     EXPECT_THAT((*lp)[i].image, HasSubstr(names[i]));
-    for (int k = 0; k < 3; ++k) EXPECT_NEAR((*lp)[i].direction[k], lights[i][k], 1e-6);
+    Vec3 expected = lights[i];
+    LiftToLowestElevation(&expected);  // the grid's horizon row is read just above it
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR((*lp)[i].direction[k], expected[k], 1e-6);
   }
+}
+
+// A light a fraction of a degree below the horizon (calibration noise) is read just above it,
+// its azimuth kept; one well below is left for the families to refuse or fit.
+TEST(ExportLp, LightsWithinTheHorizonsToleranceAreLiftedJustAboveIt) {
+  const std::string dir = testing::FreshTempDir("lp-horizon");
+  auto dir_at = [](double az_deg, double el_deg) {
+    const double a = az_deg * M_PI / 180, e = el_deg * M_PI / 180;
+    return Vec3{std::cos(e) * std::cos(a), std::cos(e) * std::sin(a), std::sin(e)};
+  };
+  const std::vector<Vec3> lights = {dir_at(30, -0.07), dir_at(120, 0.0), dir_at(200, -5.0),
+                                    dir_at(45, 40.0)};
+  ASSERT_TRUE(WriteLp(dir + "/dirs.lp", {"a.jpg", "b.jpg", "c.jpg", "d.jpg"}, lights).ok());
+  auto lp = ReadLp(dir + "/dirs.lp");
+  ASSERT_TRUE(lp.ok()) << lp.error().ToString();
+  const double lowest = std::sin(kLowestElevationDeg * M_PI / 180);
+  for (int i : {0, 1}) {
+    EXPECT_NEAR((*lp)[i].direction[2], lowest, 1e-6) << i;
+    const double az = std::atan2((*lp)[i].direction[1], (*lp)[i].direction[0]) * 180 / M_PI;
+    EXPECT_NEAR(az, i == 0 ? 30 : 120, 1e-4);  // .lp files hold 6 decimals
+  }
+  EXPECT_NEAR((*lp)[2].direction[2], lights[2][2], 1e-6);  // 5 degrees below: as written
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR((*lp)[3].direction[k], lights[3][k], 1e-6);
 }
 
 }  // namespace

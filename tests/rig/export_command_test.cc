@@ -136,9 +136,25 @@ TEST(ExportCommand, SessionAsAnLpCaptureFitsBackAndRadianceModelsAreScaledToDisp
   auto lp = ReadLp(dir + "/lp/dirs.lp");
   ASSERT_TRUE(lp.ok()) << lp.error().ToString();
   ASSERT_EQ(lp->size(), 40u);
-  EXPECT_TRUE(fs::exists(dir + "/lp/h000_v00.png"));
+  // JPEG images by default (relight-cli reads *.jpg only), PNG on request.
+  EXPECT_TRUE(fs::exists(dir + "/lp/h000_v00.jpg"));
+  EXPECT_FALSE(fs::exists(dir + "/lp/h000_v00.png"));
+  // The grid's poses at the horizon are lifted off it, named, and every light is above it, so
+  // the hemispherical families (hsh, pca) fit the capture.
+  size_t at_horizon = 0;
+  for (const auto& e : *lp) {
+    EXPECT_GT(e.direction[2], 0.0) << e.image;
+    if (e.direction[2] < 0.01) ++at_horizon;
+  }
+  EXPECT_GT(at_horizon, 0u);
+  EXPECT_THAT(r.output, HasSubstr(fmt::format("{} pose(s) at the horizon", at_horizon)));
   r = RunRig("fit --lp " + dir + "/lp/dirs.lp --basis ptm --order 2 --out " + dir + "/fit.exr");
   EXPECT_EQ(r.status, 0) << r.output;
+  r = RunRig("fit --lp " + dir + "/lp/dirs.lp --basis hsh --order 2 --out " + dir + "/hsh.exr");
+  EXPECT_EQ(r.status, 0) << r.output;
+  r = RunRig("export " + dir + "/S --format lp --lp-images png --out " + dir + "/lp-png");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_TRUE(fs::exists(dir + "/lp-png/h000_v00.png"));
   // The session's own model (linear ρ relative to the lamp) is refitted and scaled to display.
   r = RunRig("export " + dir + "/S --format relight --out " + dir + "/web");
   ASSERT_EQ(r.status, 0) << r.output;
