@@ -35,6 +35,7 @@ class RelightFamily final : public ReflectanceModel {
     return fmt::format("{} (relight's basis){}", c_.Summary(),
                        origin_.empty() ? "" : ", from " + origin_);
   }
+  std::vector<Vec3> fitted_lights() const override { return c_.lights; }
   int width() const override { return c_.width; }
   int height() const override { return c_.height; }
   ValueEncoding encoding() const override { return ValueEncoding::kSrgb; }

@@ -139,7 +139,7 @@ Result<ViewReport> WriteViewFolder(const ViewRequest& request) {
       auto m = LoadAnyModel(path);  // checks the whole folder
       if (!m.ok()) return m.error();
       model = std::move(*m);
-      if (const RelightCoefficients* rc = RelightCoefficientsOf(*model)) lights = rc->lights;
+      if (lights.empty()) lights = model->fitted_lights();  // a PCA (bilinear) model's too
     }
     fs::create_directories(a.out, ec);
     if (ec) return MakeError(ErrorCode::kIo, a.out, "cannot create: {}", ec.message());
@@ -155,6 +155,7 @@ Result<ViewReport> WriteViewFolder(const ViewRequest& request) {
   }
 
   if (model) {
+    if (lights.empty()) lights = model->fitted_lights();
     describe = model->Describe();
     width = model->width();
     height = model->height();

@@ -54,6 +54,9 @@ class ReflectanceModel {
   virtual RegionCheck CheckRegion(const Vec3& direction) const = 0;
   // CV_8U, 1 valid / 0 flagged; empty: every pixel valid.
   virtual cv::Mat valid() const { return {}; }
+  // The lamp directions (object frame) the model was fitted to, where the model keeps them
+  // (the page's default light is their mean); empty when it does not.
+  virtual std::vector<Vec3> fitted_lights() const { return {}; }
 
   // Writes the model (a file or a folder, by family) at `path`.
   virtual Status Save(const std::string& path) const = 0;

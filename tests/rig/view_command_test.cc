@@ -302,7 +302,7 @@ TEST_F(ViewTest, PtmLrgbAndPcaBilinearMatchRigRender) {
   s.width = 48;
   s.height = 32;
   for (double v = 10; v <= 70; v += 20)
-    for (double h = 0; h < 360; h += 30) s.directions.push_back(LightDirection(h, v));
+    for (double h = 0; h < 180; h += 30) s.directions.push_back(LightDirection(h, v));
   s.values.resize(s.pixels() * s.directions.size() * 3);
   for (int y = 0; y < s.height; ++y)
     for (int x = 0; x < s.width; ++x) {
@@ -329,6 +329,18 @@ TEST_F(ViewTest, PtmLrgbAndPcaBilinearMatchRigRender) {
   r = RunRig("view " + pca_dir + " --out " + pca_view);
   ASSERT_EQ(r.status, 0) << r.output;
   ExpectMatches(pca_view, {{45, 40}}, 1.0, 3);
+  // Lit by default at the mean of the model's lights (not head-on), as docs/viewer.md says.
+  std::string js = testing::ReadText(pca_view + "/data.js");
+  js = js.substr(js.find('{'));
+  js = js.substr(0, js.rfind('}') + 1);
+  const auto data = nlohmann::json::parse(js);
+  Vec3 mean{0, 0, 0};
+  for (const Vec3& d : s.directions)
+    for (int k = 0; k < 3; ++k) mean[k] += d[k];
+  const double norm = std::sqrt(mean[0] * mean[0] + mean[1] * mean[1] + mean[2] * mean[2]);
+  for (int k = 0; k < 3; ++k)
+    EXPECT_NEAR(data.at("default_light")[k].get<double>(), mean[k] / norm, 1e-3) << k;  // info.json rounds
+  EXPECT_LT(data.at("default_light")[2].get<double>(), 0.95);  // far from head-on here
 }
 
 TEST_F(ViewTest, HdrModelUsesWardsCurveOfTheDefaultLight) {

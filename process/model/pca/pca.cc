@@ -1065,6 +1065,7 @@ class PcaFamily final : public ReflectanceModel {
   RegionCheck CheckRegion(const Vec3& d) const override {
     return CheckAgainstLamps(m_.lights(), spacing_deg_, d);
   }
+  std::vector<Vec3> fitted_lights() const override { return m_.lights(); }
   Status Save(const std::string& path) const override { return m_.Save(path); }
 
  private:
