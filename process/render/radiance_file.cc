@@ -104,19 +104,21 @@ Status ScanView(const std::string& line, const std::string& path, PictureView* v
   return Ok();
 }
 
+// The header's text: everything before the first empty line, read from at most the first
+// kMaxHeaderBytes of the file (a file without newlines is not read whole).
 Result<std::string> ReadHeaderText(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   if (!f) return MakeError(ErrorCode::kIo, path, "cannot open");
-  std::string text, line;
-  while (std::getline(f, line)) {
-    if (line.empty()) return text;
-    text += line;
-    text += '\n';
-    if (text.size() > kMaxHeaderBytes) break;
+  std::string head(kMaxHeaderBytes, '\0');
+  f.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<size_t>(f.gcount()));
+  const size_t end = head.find("\n\n");
+  if (end == std::string::npos) {
+    return MakeError(ErrorCode::kInvalidInput, path,
+                     "no end of the Radiance header (an empty line) in its first {} bytes",
+                     kMaxHeaderBytes);
   }
-  return MakeError(ErrorCode::kInvalidInput, path,
-                   "no end of the Radiance header (a blank line) in its first {} bytes",
-                   kMaxHeaderBytes);
+  return head.substr(0, end + 1);
 }
 
 Result<RadiancePicture> ReadExrPicture(const std::string& path) {

@@ -1,6 +1,6 @@
 // Tone mapping of radiance maps for a screen: Ward Larson, Rushmeier & Piatko 1997 histogram
 // adjustment with the linear ceiling (the paper's §4.2), a linear/clipped mapping, and three
-// of OpenCV's operators (Reinhard, Drago, Mantiuk) for comparison. See docs/tonemap.md.
+// of OpenCV's operators (Reinhard, Drago, Mantiuk) for comparison. See docs/render.md.
 #pragma once
 
 #include <array>
@@ -21,9 +21,10 @@ enum class ToneMapMethod { kWard, kLinear, kReinhard, kDrago, kMantiuk };
 
 // Ward's histogram adjustment as Radiance's pcond computes it (the default), or as the 1997
 // paper describes it. See docs/render.md, "Ward's curve", for every difference.
-//   kPcond: the field of view on the larger image side, 2·tan(fov/2) / 1° samples across it;
-//           16 random single pixels per foveal sample, together weighted as much as the foveal
-//           samples; the range padded (max × 1.01, one extra bin below the minimum, half of
+//   kPcond: the picture's view (or the field of view on the larger image side, 2·tan(fov/2) /
+//           1° samples across it); single pixels added to the foveal samples (pcond: 16 random
+//           per foveal sample; ours by default 256 stratified, see WardSampling), together
+//           weighted as much as the foveal samples; the range padded (max × 1.01, one extra bin below the minimum, half of
 //           bin 1 moved into it); the stop test against the current total; the cumulative
 //           from before the last trim; the linear fallback at the mean log of all samples.
 //   kPaper: 1° foveal samples only, horizontal field of view, the exact sample range, the
@@ -72,8 +73,9 @@ struct ToneMapOptions {
   double linear_scale = 0;
   double linear_percentile = 99;
   WardVariant ward_variant = WardVariant::kPcond;
-  // kPcond: the seed of the random single-pixel samples (std::mt19937_64; pcond itself draws
-  // with its own random(), so its pixels differ from ours) and how many per foveal sample.
+  // kPcond: the seed of the single-pixel samples (std::mt19937_64; pcond itself draws with its
+  // own random(), so its pixels differ from ours), how many per foveal sample (pcond: 16; 256
+  // here, the default, makes the curve nearly independent of the seed) and how they are drawn.
   uint64_t ward_seed = 1;
   int ward_point_samples_per_foveal = 256;
   WardSampling ward_sampling = WardSampling::kStratified;

@@ -77,8 +77,8 @@ int RunTonemap(int argc, char** argv) {
   app.add_option("--out", a.out, "output picture (.png, .jpg, ...)")->required();
   app.add_option("--method", a.method_name, "ward (default), linear, reinhard, drago or mantiuk");
   app.add_option("--ward-variant", a.ward_variant,
-                 "ward: pcond (default: as Radiance's pcond computes it, 16 random pixels per "
-                 "foveal sample) or paper (the 1997 paper's 1-degree samples only)");
+                 "ward: pcond (default: as Radiance's pcond computes it, with single pixels "
+                 "added to the foveal samples) or paper (the 1997 paper's 1-degree samples only)");
   app.add_option("--fov-deg", a.fov_deg,
                  "field of view in degrees, for Ward's 1-degree samples: of the larger side "
                  "(pcond), of the width (paper) "

@@ -251,6 +251,12 @@ TEST(RadianceHeader, ReaderDividesOutExposureAndColourCorrection) {
   auto plain = ReadRadianceFile(WriteHdr(dir, img, ""));
   ASSERT_TRUE(plain.ok());
   EXPECT_NEAR(plain->at<cv::Vec3f>(0, 0)[2], 1.0, 1e-2);
+  {  // no header end within 64 KiB (no newline at all): refused without reading it whole
+    std::ofstream(dir + "/endless.hdr", std::ios::binary) << std::string(100000, 'a');
+    auto endless = ReadRadiancePicture(dir + "/endless.hdr");
+    ASSERT_FALSE(endless.ok());
+    EXPECT_NE(endless.error().ToString().find("no end of the Radiance header"), std::string::npos);
+  }
   auto bad = ReadRadiancePicture(WriteHdr(dir, img, "EXPOSURE=-1\n"));
   ASSERT_FALSE(bad.ok());
   EXPECT_NE(bad.error().ToString().find("picture.hdr"), std::string::npos);
