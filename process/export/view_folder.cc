@@ -39,7 +39,9 @@ nlohmann::json WardDisplay(const ReflectanceModel& model, const Vec3& light, dou
                            const ToneMapOptions& options) {
   cv::Mat radiance;
   model.AddLamp(light, {1, 1, 1}, &radiance);
-  const cv::Mat foveal = FovealLuminance(Luminance(radiance), options.field_of_view_deg);
+  // The luminance weights rig render uses (the white-balanced Y of the radiance's primaries).
+  const cv::Vec3f w = LuminanceWeightsBgr(options);
+  const cv::Mat foveal = FovealLuminance(Luminance(radiance, w), options.field_of_view_deg);
   std::vector<float> samples(foveal.begin<float>(), foveal.end<float>());
   const WardMapping mapping = ComputeWardMapping(samples, options);
   double lo = std::numeric_limits<double>::infinity(), hi = -lo;
@@ -54,7 +56,8 @@ nlohmann::json WardDisplay(const ReflectanceModel& model, const Vec3& light, dou
   const auto e = model.lamp_radiance_rgb();
   return {{"encoding", "linear"}, {"gain", gain}, {"lamp_rgb", {e[0], e[1], e[2]}},
           {"tonemap", "ward"}, {"lut_log_min", lo}, {"lut_log_max", hi}, {"lut", lut},
-          {"lut_light", {light[0], light[1], light[2]}}};
+          {"lut_light", {light[0], light[1], light[2]}},
+          {"luminance_rgb", {w[2], w[1], w[0]}}};
 }
 
 // A model not in relight's web format: converted to it in `out` (as rig export does), read

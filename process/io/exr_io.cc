@@ -22,6 +22,7 @@
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
 #include <ImfOutputFile.h>
+#include <ImfStandardAttributes.h>
 #include <ImfStringAttribute.h>
 #include <ImfThreading.h>
 
@@ -48,7 +49,7 @@ namespace fs = std::filesystem;
 
 // Header attributes OpenEXR itself defines; never copied into ExrImage::attributes.
 bool IsStandardAttribute(const std::string& name) {
-  static const char* kStandard[] = {"channels",         "compression", "dataWindow",
+  static const char* kStandard[] = {"channels",         "compression", "dataWindow", "chromaticities",
                                     "displayWindow",    "lineOrder",   "pixelAspectRatio",
                                     "screenWindowCenter", "screenWindowWidth"};
   for (const char* s : kStandard) {
@@ -182,7 +183,8 @@ Result<ExrCompression> ParseExrCompression(const std::string& name) {
 Status WriteExrStriped(const std::string& path, int width, int height,
                        const std::vector<std::string>& channel_names,
                        const std::map<std::string, std::string>& attributes, ExrPixelType type,
-                       int threads, const ExrStripeFill& fill, ExrCompression compression) {
+                       int threads, const ExrStripeFill& fill, ExrCompression compression,
+                       const std::optional<std::array<double, 8>>& chromaticities) {
   if (width <= 0 || height <= 0) {
     return MakeError(ErrorCode::kInvalidInput, path, "cannot write an empty image ({}x{})", width,
                      height);
@@ -209,6 +211,14 @@ Status WriteExrStriped(const std::string& path, int width, int height,
                          "attribute name '{}' is reserved by OpenEXR", key);
       }
       header.insert(key, Imf::StringAttribute(value));
+    }
+    if (chromaticities) {
+      const auto& c = *chromaticities;
+      Imf::addChromaticities(
+          header, Imf::Chromaticities(Imath::V2f(float(c[0]), float(c[1])),
+                                      Imath::V2f(float(c[2]), float(c[3])),
+                                      Imath::V2f(float(c[4]), float(c[5])),
+                                      Imath::V2f(float(c[6]), float(c[7]))));
     }
     // Stripes of 64 lines (four ZIP blocks, compressed in parallel), interleaved, in two
     // buffers reused for every stripe: no image-sized temporaries (fresh memory costs a page
@@ -282,7 +292,7 @@ Status WriteExr(const std::string& path, const ExrImage& image, ExrPixelType typ
                                for (int x = 0; x < image.width; ++x) o[x * nch + i] = src[x];
                              }
                            }
-                         }, compression);
+                         }, compression, image.chromaticities);
 }
 
 Result<std::map<std::string, std::string>> ReadExrAttributes(const std::string& path) {
@@ -358,6 +368,11 @@ Result<ExrImage> ReadExr(const std::string& path, int threads) {
         image.attributes[it.name()] = s->value();
       }
     }
+    if (Imf::hasChromaticities(header)) {
+      const Imf::Chromaticities& c = Imf::chromaticities(header);
+      image.chromaticities = std::array<double, 8>{c.red.x,   c.red.y,   c.green.x, c.green.y,
+                                                   c.blue.x,  c.blue.y,  c.white.x, c.white.y};
+    }
     return image;
   } catch (const Iex::BaseExc& e) {
     return MakeError(ErrorCode::kCorrupt, path, "cannot read EXR: {}", e.what());
@@ -387,7 +402,7 @@ Status WriteRgbExr(const std::string& path, const cv::Mat& bgr,
 }
 
 Result<cv::Mat> ReadRgbExr(const std::string& path, std::map<std::string, std::string>* attributes,
-                           int threads) {
+                           int threads, std::optional<std::array<double, 8>>* chromaticities) {
   RIG_ASSIGN_OR_RETURN(ExrImage image, ReadExr(path, threads));
   cv::Mat planes[3];
   const char* kNames[3] = {"B", "G", "R"};
@@ -403,6 +418,7 @@ Result<cv::Mat> ReadRgbExr(const std::string& path, std::map<std::string, std::s
   cv::Mat bgr;
   cv::merge(planes, 3, bgr);
   if (attributes) *attributes = std::move(image.attributes);
+  if (chromaticities) *chromaticities = image.chromaticities;
   return bgr;
 }
 

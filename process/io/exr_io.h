@@ -2,9 +2,11 @@
 // so that metadata (pose, exposures, response id, basis, order ...) travels with pixels.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -52,6 +54,8 @@ struct ExrImage {
   std::vector<std::string> channel_names;  // e.g. "R", "G", "B" or "c00.R", "c01.R" ...
   std::vector<cv::Mat> channels;           // each CV_32FC1, height x width
   std::map<std::string, std::string> attributes;  // string attributes of the header
+  // OpenEXR's chromaticities attribute (red, green, blue, white xy), when the file has one.
+  std::optional<std::array<double, 8>> chromaticities;
 };
 
 // Writes atomically (temporary file in the same folder, then rename): a reader never sees a
@@ -71,17 +75,20 @@ Status WriteExrStriped(const std::string& path, int width, int height,
                        const std::vector<std::string>& channel_names,
                        const std::map<std::string, std::string>& attributes, ExrPixelType type,
                        int threads, const ExrStripeFill& fill,
-                       ExrCompression compression = ExrCompression::kZip);
+                       ExrCompression compression = ExrCompression::kZip,
+                       const std::optional<std::array<double, 8>>& chromaticities = {});
 
 // Convenience for radiance maps: a CV_32FC3 image in OpenCV's BGR order <-> channels R, G, B.
 Status WriteRgbExr(const std::string& path, const cv::Mat& bgr,
                    const std::map<std::string, std::string>& attributes = {},
                    ExrPixelType type = ExrPixelType::kFloat, int threads = 2,
                    ExrCompression compression = ExrCompression::kZip);
-// Reads R, G, B (an EXR without them is an error naming the file) into a CV_32FC3 BGR image.
+// Reads R, G, B (an EXR without them is an error naming the file) into a CV_32FC3 BGR image;
+// `chromaticities` (if given) receives the header's chromaticities attribute, if any.
 Result<cv::Mat> ReadRgbExr(const std::string& path,
                            std::map<std::string, std::string>* attributes = nullptr,
-                           int threads = 2);
+                           int threads = 2,
+                           std::optional<std::array<double, 8>>* chromaticities = nullptr);
 
 // Sizes OpenEXR's global thread pool (line-block compression and decompression) to at least
 // one thread per `threads`; changed only when the count changes.

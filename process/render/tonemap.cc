@@ -18,7 +18,7 @@
 namespace rig {
 namespace {
 
-// Rec. 709 / sRGB primaries, applied to OpenCV's B, G, R order.
+// Rec. 709 / sRGB luminance weights, in OpenCV's B, G, R order.
 constexpr float kLumaB = 0.0722f, kLumaG = 0.7152f, kLumaR = 0.2126f;
 
 // Float-bit lookup: a positive float's bits shifted right by kLutShift index a table whose
@@ -35,18 +35,23 @@ cv::Size PaperFovealSize(int cols, int rows, double field_of_view_deg) {
   return cv::Size(std::min(fw, cols), std::min(fh, rows));
 }
 
-// pcond's grid (getahead, getfovimg): the default view is a perspective one whose larger side
-// spans the field of view; samples across a side = its image-plane width 2·tan(half angle)
-// divided by one degree in radians, plus 0.5, truncated.
-cv::Size PcondFovealSize(int cols, int rows, double field_of_view_deg) {
+// pcond's grid (getahead, getfovimg): samples across a side = the view's image-plane extent
+// on that side divided by one degree in radians, plus 0.5, truncated, at least 2. Without a
+// usable view, pcond's default: a perspective view whose larger side (pixel aspect counted)
+// spans the field of view, the other side 2·tan(fov/2) in proportion.
+cv::Size PcondFovealSize(int cols, int rows, double field_of_view_deg,
+                         std::array<double, 2> extent, double pixel_aspect) {
   const double one_deg = std::numbers::pi / 180;
-  const double span = 2 * std::tan(field_of_view_deg * one_deg / 2);  // of the larger side
-  const int longer = std::max(cols, rows), shorter = std::min(cols, rows);
-  const int n_long = std::max(2, static_cast<int>(span / one_deg + 0.5));
-  const int n_short =
-      std::max(2, static_cast<int>(span * shorter / longer / one_deg + 0.5));
-  const int fw = cols >= rows ? n_long : n_short;
-  const int fh = cols >= rows ? n_short : n_long;
+  if (!(extent[0] > 0 && extent[1] > 0)) {
+    const double span = 2 * std::tan(field_of_view_deg * one_deg / 2);
+    if (pixel_aspect * rows < cols) {
+      extent = {span, span * pixel_aspect * rows / cols};
+    } else {
+      extent = {span * cols / (pixel_aspect * rows), span};
+    }
+  }
+  const int fw = std::max(2, static_cast<int>(extent[0] / one_deg + 0.5));
+  const int fh = std::max(2, static_cast<int>(extent[1] / one_deg + 0.5));
   return cv::Size(std::min(fw, cols), std::min(fh, rows));
 }
 
@@ -77,6 +82,19 @@ Status CheckOptions(const ToneMapOptions& o) {
                            "got {} (the paper variant takes up to 360)",
                            o.field_of_view_deg));
   }
+  if (!RgbToXyzWhiteBalanced(o.picture_primaries).ok()) {
+    return bad("the picture's primaries are degenerate");
+  }
+  if (!RgbToXyzWhiteBalanced(o.display_primaries).ok()) {
+    return bad("the display's primaries are degenerate");
+  }
+  if (!(o.pixel_aspect > 0 && std::isfinite(o.pixel_aspect))) {
+    return bad(fmt::format("pixel_aspect must be positive, got {}", o.pixel_aspect));
+  }
+  if (!(o.view_extent[0] >= 0 && o.view_extent[1] >= 0 && std::isfinite(o.view_extent[0]) &&
+        std::isfinite(o.view_extent[1]))) {
+    return bad("view_extent must be two non-negative numbers");
+  }
   if (o.ward_point_samples_per_foveal < 0 || o.ward_point_samples_per_foveal > 1000) {
     return bad(fmt::format("ward_point_samples_per_foveal must be in [0, 1000], got {}",
                            o.ward_point_samples_per_foveal));
@@ -106,7 +124,7 @@ Status CheckOptions(const ToneMapOptions& o) {
 
 // Scales every pixel's BGR by factor(L) of its luminance: keeps colour ratios exactly.
 template <typename Factor>
-cv::Mat ScaleByLuminance(const cv::Mat& radiance, const Factor& factor) {
+cv::Mat ScaleByLuminance(const cv::Mat& radiance, const cv::Vec3f& w, const Factor& factor) {
   cv::Mat out(radiance.size(), CV_32FC3);
   cv::parallel_for_(cv::Range(0, radiance.rows), [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
@@ -114,7 +132,7 @@ cv::Mat ScaleByLuminance(const cv::Mat& radiance, const Factor& factor) {
       float* o = out.ptr<float>(y);
       for (int x = 0; x < radiance.cols; ++x, in += 3, o += 3) {
         const float b = in[0], g = in[1], r = in[2];
-        const float l = kLumaB * b + kLumaG * g + kLumaR * r;
+        const float l = w[0] * b + w[1] * g + w[2] * r;
         float m = 0;
         if (l > 0 && l <= std::numeric_limits<float>::max()) {
           m = factor(l);
@@ -169,10 +187,10 @@ cv::Mat WardPixels(const cv::Mat& radiance, const ToneMapOptions& o, ToneMapRepo
       o.ward_fixed ? *o.ward_fixed : ComputeWardMappingForImage(radiance, o, report);
   if (mapping.linear) {
     const float m = static_cast<float>(mapping.linear_scale / mapping.display_max_cd_m2);
-    return ScaleByLuminance(radiance, [m](float) { return m; });
+    return ScaleByLuminance(radiance, LuminanceWeightsBgr(o), [m](float) { return m; });
   }
   WardFactorLut lut(mapping);
-  return ScaleByLuminance(radiance, lut);
+  return ScaleByLuminance(radiance, LuminanceWeightsBgr(o), lut);
 }
 
 cv::Mat LinearPixels(const cv::Mat& radiance, const ToneMapOptions& o, ToneMapReport* report) {
@@ -183,10 +201,11 @@ cv::Mat LinearPixels(const cv::Mat& radiance, const ToneMapOptions& o, ToneMapRe
   std::vector<float> lum;
   lum.reserve(n / stride + 1);
   float lo = std::numeric_limits<float>::max(), hi = 0;
+  const cv::Vec3f w = LuminanceWeightsBgr(o);
   for (size_t i = 0; i < n; i += stride) {
     const cv::Vec3f p = radiance.at<cv::Vec3f>(static_cast<int>(i / radiance.cols),
                                                static_cast<int>(i % radiance.cols));
-    const float l = kLumaB * p[0] + kLumaG * p[1] + kLumaR * p[2];
+    const float l = w[0] * p[0] + w[1] * p[1] + w[2] * p[2];
     if (l > 0 && std::isfinite(l)) {
       lum.push_back(l);
       lo = std::min(lo, l);
@@ -289,16 +308,129 @@ double FieldOfViewDeg(double focal_length_mm, double sensor_width_mm) {
   return 2 * std::atan(sensor_width_mm / (2 * focal_length_mm)) * 180 / std::numbers::pi;
 }
 
-cv::Mat Luminance(const cv::Mat& bgr) {
+cv::Mat Luminance(const cv::Mat& bgr) { return Luminance(bgr, cv::Vec3f(kLumaB, kLumaG, kLumaR)); }
+
+cv::Mat Luminance(const cv::Mat& bgr, const cv::Vec3f& w) {
   RIG_CHECK(bgr.type() == CV_32FC3, "Luminance takes CV_32FC3");
   cv::Mat lum;
-  cv::transform(bgr, lum, cv::Matx13f(kLumaB, kLumaG, kLumaR));
+  cv::transform(bgr, lum, cv::Matx13f(w[0], w[1], w[2]));
   return lum;
 }
 
+cv::Vec3f LuminanceWeightsBgr(const ToneMapOptions& o) {
+  auto m = RgbToXyzWhiteBalanced(o.picture_primaries);
+  if (!m.ok()) return cv::Vec3f(kLumaB, kLumaG, kLumaR);  // refused by CheckOptions first
+  return cv::Vec3f(static_cast<float>((*m)(1, 2)), static_cast<float>((*m)(1, 1)),
+                   static_cast<float>((*m)(1, 0)));
+}
+
+Status ApplyPictureHeader(const PictureHeader& header, ToneMapOptions* o) {
+  o->picture_primaries = header.primaries;
+  o->pixel_aspect = header.pixel_aspect;
+  o->view_extent = {0, 0};
+  if (header.view) {
+    auto extent = ViewExtent(*header.view);
+    if (!extent.ok()) return extent.error();
+    // pcond keeps its default view for a parallel one or one under 5 degrees on a side.
+    if (header.view->type != 'l' && header.view->horizontal_deg > 5 &&
+        header.view->vertical_deg > 5) {
+      o->view_extent = *extent;
+    }
+  }
+  return Ok();
+}
+
+cv::Size FovealSampleSize(int cols, int rows, const ToneMapOptions& o) {
+  return o.ward_variant == WardVariant::kPcond
+             ? PcondFovealSize(cols, rows, o.field_of_view_deg, o.view_extent, o.pixel_aspect)
+             : PaperFovealSize(cols, rows, o.field_of_view_deg);
+}
+
+const char* GamutMappingName(GamutMapping g) {
+  return g == GamutMapping::kDesaturate ? "desaturate" : "clip";
+}
+
+Result<GamutMapping> ParseGamutMapping(const std::string& name) {
+  if (name == "desaturate") return GamutMapping::kDesaturate;
+  if (name == "clip") return GamutMapping::kClip;
+  return MakeError(ErrorCode::kInvalidInput, "tone mapping",
+                   "unknown gamut mapping '{}' (desaturate or clip)", name);
+}
+
+const char* WardSamplingName(WardSampling s) {
+  return s == WardSampling::kStratified ? "stratified" : "random";
+}
+
+Result<WardSampling> ParseWardSampling(const std::string& name) {
+  if (name == "stratified") return WardSampling::kStratified;
+  if (name == "random") return WardSampling::kRandom;
+  return MakeError(ErrorCode::kInvalidInput, "tone mapping",
+                   "unknown Ward sampling '{}' (stratified or random)", name);
+}
+
+std::vector<int64_t> StratifiedPixelIndices(int cols, int rows, cv::Size cells, uint64_t seed) {
+  std::vector<int64_t> out;
+  if (cols <= 0 || rows <= 0 || cells.width <= 0 || cells.height <= 0) return out;
+  const int nx = std::min(cells.width, cols), ny = std::min(cells.height, rows);
+  std::mt19937_64 gen(seed);
+  out.reserve(static_cast<size_t>(nx) * ny);
+  for (int j = 0; j < ny; ++j) {
+    const int64_t y0 = int64_t{j} * rows / ny, y1 = int64_t{j + 1} * rows / ny;
+    for (int i = 0; i < nx; ++i) {
+      const int64_t x0 = int64_t{i} * cols / nx, x1 = int64_t{i + 1} * cols / nx;
+      const int64_t x = x0 + static_cast<int64_t>(gen() % static_cast<uint64_t>(x1 - x0));
+      const int64_t y = y0 + static_cast<int64_t>(gen() % static_cast<uint64_t>(y1 - y0));
+      out.push_back(y * cols + x);
+    }
+  }
+  return out;
+}
+
+void MapToDisplayGamut(cv::Mat* pixels, const cv::Matx33d& to_display,
+                       const cv::Vec3f& w, GamutMapping gamut) {
+  RIG_CHECK(pixels->type() == CV_32FC3, "MapToDisplayGamut takes CV_32FC3");
+  const bool convert = to_display != cv::Matx33d::eye();
+  if (!convert && gamut == GamutMapping::kClip) return;  // the encoding clips each channel
+  // R, G, B matrix applied to B, G, R pixels: rows and columns reversed.
+  cv::Matx33f m;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) m(2 - r, 2 - c) = static_cast<float>(to_display(r, c));
+  cv::parallel_for_(cv::Range(0, pixels->rows), [&](const cv::Range& range) {
+    for (int y = range.start; y < range.end; ++y) {
+      float* p = pixels->ptr<float>(y);
+      for (int x = 0; x < pixels->cols; ++x, p += 3) {
+        cv::Vec3f v(p[0], p[1], p[2]);
+        if (convert) v = m * v;
+        if (gamut == GamutMapping::kDesaturate) {
+          // Radiance's clipgamut against black (0, 0, 0) and white (1, 1, 1).
+          const float brt = w[0] * v[0] + w[1] * v[1] + w[2] * v[2];
+          if (!(brt > 0)) {
+            v = cv::Vec3f(0, 0, 0);
+          } else if (brt > 1) {
+            v = cv::Vec3f(1, 1, 1);
+          } else {
+            float keep = 1;
+            for (int c = 0; c < 3; ++c) {
+              if (v[c] < 0) keep = std::min(keep, -brt / (v[c] - brt));
+              else if (v[c] > 1) keep = std::min(keep, (1 - brt) / (v[c] - brt));
+            }
+            if (keep < 1) {
+              for (int c = 0; c < 3; ++c) v[c] = std::clamp(brt + keep * (v[c] - brt), 0.0f, 1.0f);
+            }
+          }
+        }
+        p[0] = v[0];
+        p[1] = v[1];
+        p[2] = v[2];
+      }
+    }
+  });
+}
+
 cv::Size FovealSampleSize(int cols, int rows, double field_of_view_deg, WardVariant variant) {
-  return variant == WardVariant::kPcond ? PcondFovealSize(cols, rows, field_of_view_deg)
-                                        : PaperFovealSize(cols, rows, field_of_view_deg);
+  return variant == WardVariant::kPcond
+             ? PcondFovealSize(cols, rows, field_of_view_deg, {0, 0}, 1)
+             : PaperFovealSize(cols, rows, field_of_view_deg);
 }
 
 cv::Mat FovealLuminance(const cv::Mat& luminance, double field_of_view_deg, WardVariant variant) {
@@ -578,21 +710,29 @@ WardMapping ComputeWardMappingForImage(const cv::Mat& radiance, const ToneMapOpt
   cv::Mat foveal_rgb;
   // Resizing is linear and so is luminance: averaging RGB then weighting equals averaging
   // the luminance, at a third of the cost on the full image.
-  cv::resize(radiance, foveal_rgb,
-             FovealSampleSize(radiance.cols, radiance.rows, o.field_of_view_deg, o.ward_variant),
-             0, 0, cv::INTER_AREA);
-  cv::Mat foveal = Luminance(foveal_rgb);
+  const cv::Size fov = FovealSampleSize(radiance.cols, radiance.rows, o);
+  cv::resize(radiance, foveal_rgb, fov, 0, 0, cv::INTER_AREA);
+  const cv::Vec3f w = LuminanceWeightsBgr(o);
+  cv::Mat foveal = Luminance(foveal_rgb, w);
   std::vector<float> samples(foveal.begin<float>(), foveal.end<float>());
   std::vector<float> points;
   if (o.ward_variant == WardVariant::kPcond && o.ward_point_samples_per_foveal > 0) {
     const int64_t pixels = static_cast<int64_t>(radiance.total());
     const int64_t wanted = static_cast<int64_t>(samples.size()) * o.ward_point_samples_per_foveal;
-    const std::vector<int64_t> idx = RandomPixelIndices(pixels, wanted, o.ward_seed);
+    std::vector<int64_t> idx;
+    if (o.ward_sampling == WardSampling::kStratified) {
+      const int k = std::max(1, static_cast<int>(std::lround(
+                                    std::sqrt(static_cast<double>(o.ward_point_samples_per_foveal)))));
+      idx = StratifiedPixelIndices(radiance.cols, radiance.rows,
+                                   cv::Size(fov.width * k, fov.height * k), o.ward_seed);
+    } else {
+      idx = RandomPixelIndices(pixels, wanted, o.ward_seed);
+    }
     points.reserve(idx.size());
     const int cols = radiance.cols;
     for (int64_t i : idx) {
       const float* p = radiance.ptr<float>(static_cast<int>(i / cols)) + 3 * (i % cols);
-      points.push_back(kLumaB * p[0] + kLumaG * p[1] + kLumaR * p[2]);
+      points.push_back(w[0] * p[0] + w[1] * p[1] + w[2] * p[2]);
     }
   }
   WardMapping mapping = ComputeWardMapping(samples, points, o, report);
@@ -611,17 +751,24 @@ Result<cv::Mat> ToneMapLinearPixels(const cv::Mat& radiance, const ToneMapOption
   RIG_TRY(CheckRadiance(radiance));
   RIG_TRY(CheckOptions(o));
   try {
+    Result<cv::Mat> pixels = MakeError(ErrorCode::kInvalidInput, "tone mapping", "unknown method");
     switch (o.method) {
-      case ToneMapMethod::kWard: return WardPixels(radiance, o, report);
-      case ToneMapMethod::kLinear: return LinearPixels(radiance, o, report);
+      case ToneMapMethod::kWard: pixels = WardPixels(radiance, o, report); break;
+      case ToneMapMethod::kLinear: pixels = LinearPixels(radiance, o, report); break;
       case ToneMapMethod::kReinhard:
       case ToneMapMethod::kDrago:
-      case ToneMapMethod::kMantiuk: return OpenCvPixels(radiance, o.method);
+      case ToneMapMethod::kMantiuk: pixels = OpenCvPixels(radiance, o.method); break;
     }
+    if (!pixels.ok()) return pixels;
+    RIG_ASSIGN_OR_RETURN(cv::Matx33d to_display,
+                         RgbToRgbWhiteBalanced(o.picture_primaries, o.display_primaries));
+    ToneMapOptions display = o;
+    display.picture_primaries = o.display_primaries;
+    MapToDisplayGamut(&*pixels, to_display, LuminanceWeightsBgr(display), o.gamut);
+    return pixels;
   } catch (const cv::Exception& e) {
     return MakeError(ErrorCode::kInternal, "tone mapping", "OpenCV failed: {}", e.what());
   }
-  return MakeError(ErrorCode::kInvalidInput, "tone mapping", "unknown method");
 }
 
 cv::Mat EncodeForDisplay(const cv::Mat& linear_pixels, const ToneMapOptions& o,

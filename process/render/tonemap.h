@@ -1,8 +1,9 @@
 // Tone mapping of radiance maps for a screen: Ward Larson, Rushmeier & Piatko 1997 histogram
 // adjustment with the linear ceiling (the paper's §4.2), a linear/clipped mapping, and three
-// of OpenCV's operators (Reinhard, Drago, Mantiuk) for comparison. See docs/tonemap.md.
+// of OpenCV's operators (Reinhard, Drago, Mantiuk) for comparison. See docs/render.md.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -12,6 +13,7 @@
 
 #include "config/config.h"
 #include "config/result.h"
+#include "process/render/radiance_file.h"
 
 namespace rig {
 
@@ -19,9 +21,10 @@ enum class ToneMapMethod { kWard, kLinear, kReinhard, kDrago, kMantiuk };
 
 // Ward's histogram adjustment as Radiance's pcond computes it (the default), or as the 1997
 // paper describes it. See docs/render.md, "Ward's curve", for every difference.
-//   kPcond: the field of view on the larger image side, 2·tan(fov/2) / 1° samples across it;
-//           16 random single pixels per foveal sample, together weighted as much as the foveal
-//           samples; the range padded (max × 1.01, one extra bin below the minimum, half of
+//   kPcond: the picture's view (or the field of view on the larger image side, 2·tan(fov/2) /
+//           1° samples across it); single pixels added to the foveal samples (pcond: 16 random
+//           per foveal sample; ours by default 256 stratified, see WardSampling), together
+//           weighted as much as the foveal samples; the range padded (max × 1.01, one extra bin below the minimum, half of
 //           bin 1 moved into it); the stop test against the current total; the cumulative
 //           from before the last trim; the linear fallback at the mean log of all samples.
 //   kPaper: 1° foveal samples only, horizontal field of view, the exact sample range, the
@@ -31,6 +34,27 @@ const char* WardVariantName(WardVariant variant);  // "pcond", "paper"
 Result<WardVariant> ParseWardVariant(const std::string& name);
 
 struct WardMapping;
+
+// What becomes of a colour the display cannot show (a channel under 0 or over 1 once tone
+// mapped and converted to the display's primaries):
+//   kDesaturate: as Radiance's clipgamut, which pcond applies after its colour conversion:
+//                black when its luminance is under 0, white when over 1, else moved towards
+//                the grey of the same luminance just far enough that every channel is in
+//                [0, 1] (hue and luminance kept, saturation given up);
+//   kClip:       every channel clipped on its own (hue and luminance may shift).
+enum class GamutMapping { kDesaturate, kClip };
+const char* GamutMappingName(GamutMapping g);  // "desaturate", "clip"
+Result<GamutMapping> ParseGamutMapping(const std::string& name);
+
+// The random single pixels Ward's pcond variant adds to its histogram:
+//   kStratified: one pixel drawn uniformly inside each cell of a grid of
+//                (points per foveal sample) cells per foveal sample, the grid k × k with
+//                k = round(sqrt(points)) (4 × 4 for 16): the same count as pcond, spread
+//                evenly, so the curve moves less from seed to seed than pcond's own;
+//   kRandom:     distinct pixels anywhere (Floyd's algorithm), as pcond draws them.
+enum class WardSampling { kStratified, kRandom };
+const char* WardSamplingName(WardSampling s);  // "stratified", "random"
+Result<WardSampling> ParseWardSampling(const std::string& name);
 
 // "ward", "linear", "reinhard", "drago", "mantiuk".
 const char* ToneMapMethodName(ToneMapMethod method);
@@ -49,10 +73,25 @@ struct ToneMapOptions {
   double linear_scale = 0;
   double linear_percentile = 99;
   WardVariant ward_variant = WardVariant::kPcond;
-  // kPcond: the seed of the random single-pixel samples (std::mt19937_64; pcond itself draws
-  // with its own random(), so its pixels differ from ours) and how many per foveal sample.
+  // kPcond: the seed of the single-pixel samples (std::mt19937_64; pcond itself draws with its
+  // own random(), so its pixels differ from ours), how many per foveal sample (pcond: 16; 256
+  // here, the default, makes the curve nearly independent of the seed) and how they are drawn.
   uint64_t ward_seed = 1;
-  int ward_point_samples_per_foveal = 16;
+  int ward_point_samples_per_foveal = 256;
+  WardSampling ward_sampling = WardSampling::kStratified;
+  // kPcond: the image-plane extents of the picture's view (ViewExtent of its VIEW= line), the
+  // foveal samples across each side being extent / 1° (in radians) + 0.5. {0, 0}: pcond's
+  // default, a perspective view of field_of_view_deg across the larger side (stretched by
+  // pixel_aspect, height over width of a pixel, as Radiance's PIXASPECT).
+  std::array<double, 2> view_extent{0, 0};
+  double pixel_aspect = 1;
+  // The primaries of the radiance's RGB and of the display's. Luminance is weighed with the
+  // Y row of RgbToXyzWhiteBalanced(picture_primaries) (Rec. 709: 0.2126, 0.7152, 0.0722;
+  // Radiance's: 0.265, 0.670, 0.065); when they differ from the display's, the tone-mapped
+  // pixels are converted (RgbToRgbWhiteBalanced) before `gamut` applies.
+  Chromaticities picture_primaries = Rec709Primaries();
+  Chromaticities display_primaries = Rec709Primaries();
+  GamutMapping gamut = GamutMapping::kDesaturate;
   // kWard: when set, this mapping is applied as it is instead of one computed from the image
   // (a fixed display: comparisons, lamp intensity, sweeps).
   std::shared_ptr<const WardMapping> ward_fixed;
@@ -61,6 +100,14 @@ struct ToneMapOptions {
 // The default options with a configuration's display: [process] field_of_view_deg,
 // display_min_cd_m2, display_max_cd_m2.
 ToneMapOptions ToneMapOptionsFor(const ProcessConfig& process);
+
+// What a picture's header changes, as pcond takes it: the picture's primaries, its pixel
+// aspect, and its view's extent unless the view is missing, parallel (-vtl) or under 5° on
+// a side (then pcond's default view stands). An illegal view size is an error.
+Status ApplyPictureHeader(const PictureHeader& header, ToneMapOptions* o);
+
+// The luminance weights of the options' picture primaries, in OpenCV's B, G, R order.
+cv::Vec3f LuminanceWeightsBgr(const ToneMapOptions& o);
 
 struct ToneMapReport {
   bool linear_fallback = false;  // Ward: a linear mapping was used (the range fits the display,
@@ -93,8 +140,9 @@ cv::Mat EncodeForDisplay(const cv::Mat& linear_pixels, const ToneMapOptions& o,
 // Horizontal field of view of a lens on a sensor: 2·atan(sensor_width / (2·focal_length)).
 double FieldOfViewDeg(double focal_length_mm, double sensor_width_mm);
 
-// Rec. 709 luminance of a CV_32FC3 BGR image, CV_32FC1.
+// Rec. 709 luminance of a CV_32FC3 BGR image, CV_32FC1; or with other weights (B, G, R).
 cv::Mat Luminance(const cv::Mat& bgr);
+cv::Mat Luminance(const cv::Mat& bgr, const cv::Vec3f& weights_bgr);
 
 // Ward's foveal samples: the luminance averaged (linearly, as the eye integrates light) over
 // blocks of about 1° of visual angle. kPaper: field_of_view_deg samples across the width;
@@ -103,12 +151,24 @@ cv::Mat Luminance(const cv::Mat& bgr);
 cv::Mat FovealLuminance(const cv::Mat& luminance, double field_of_view_deg,
                         WardVariant variant = WardVariant::kPaper);
 cv::Size FovealSampleSize(int cols, int rows, double field_of_view_deg, WardVariant variant);
+// The foveal grid of the options (kPcond: from view_extent or the default view).
+cv::Size FovealSampleSize(int cols, int rows, const ToneMapOptions& o);
 
 // pcond's random single-pixel samples: `count` distinct pixel indices of an image of `pixels`
 // pixels (every pixel when count >= pixels), drawn by Floyd's algorithm from
 // std::mt19937_64(seed): for j = pixels − count … pixels − 1, t = gen() % (j + 1); t is taken
 // unless already chosen, then j is. In draw order.
 std::vector<int64_t> RandomPixelIndices(int64_t pixels, int64_t count, uint64_t seed);
+// kStratified: one pixel index (y · cols + x) per cell of a cells.width × cells.height grid
+// over the image (cell edges at i · cols / cells.width), uniform inside the cell, from
+// std::mt19937_64(seed); row by row. Cells wider than the image are clamped to its size.
+std::vector<int64_t> StratifiedPixelIndices(int cols, int rows, cv::Size cells, uint64_t seed);
+
+// Converts tone-mapped linear display pixels (CV_32FC3 BGR) in place: through `to_display`
+// (a 3 × 3 matrix on R, G, B; identity skips it), then the gamut mapping against [0, 1] with
+// the display's luminance weights (B, G, R) for kDesaturate.
+void MapToDisplayGamut(cv::Mat* pixels, const cv::Matx33d& to_display,
+                       const cv::Vec3f& display_weights_bgr, GamutMapping gamut);
 
 // ---- Ward's histogram adjustment, exposed for tests -------------------------------------
 // All logarithms are natural: b = ln(L_w), B_d = ln(L_d).

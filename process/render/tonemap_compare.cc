@@ -65,14 +65,24 @@ std::string DescribeToneMapPanel(const ToneMapPanel& panel) {
   const ToneMapReport& r = panel.report;
   std::string line;
   if (o.method == ToneMapMethod::kWard) {
-    line = fmt::format("fov {:.1f} deg, foveal {}x{}, scene ln range {:.2f} (display {:.2f}), {}, ",
-                       o.field_of_view_deg, r.foveal_width, r.foveal_height, r.scene_log_range,
+    const std::string view =
+        o.view_extent[0] > 0 ? fmt::format("the file's view ({:.3f} x {:.3f} image plane)",
+                                           o.view_extent[0], o.view_extent[1])
+                             : fmt::format("fov {:.1f} deg", o.field_of_view_deg);
+    line = fmt::format("{}, foveal {}x{}, scene ln range {:.2f} (display {:.2f}), {}, ", view,
+                       r.foveal_width, r.foveal_height, r.scene_log_range,
                        std::log(o.display_max_cd_m2 / o.display_min_cd_m2),
                        r.linear_fallback ? "linear mapping"
                                          : fmt::format("{} trimming passes", r.trim_iterations));
   } else if (o.method == ToneMapMethod::kLinear) {
     line = fmt::format("scale {:.4g}, ", r.linear_scale);
   }
+  const cv::Vec3f w = LuminanceWeightsBgr(o);
+  line += fmt::format("luminance {:.4f} R + {:.4f} G + {:.4f} B, {}gamut {}, ", w[2], w[1], w[0],
+                      o.picture_primaries.SameAs(o.display_primaries)
+                          ? ""
+                          : "converted to the display's primaries, ",
+                      GamutMappingName(o.gamut));
   return line + fmt::format("black {:.2f}%, white {:.2f}%", 100 * r.clipped_low_fraction,
                             100 * r.clipped_high_fraction);
 }

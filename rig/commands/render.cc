@@ -132,7 +132,7 @@ Result<std::vector<RelightLamp>> ParseSweep(const std::string& text) {
 // The command line as given.
 struct RenderArgs {
   std::string source, out, log_level, tonemap_name, sweep_text, response_option,
-      ward_variant = "pcond", display_from, envmap;
+      ward_variant = "pcond", display_from, envmap, gamut = "desaturate";
   double rotate_deg = 0, env_intensity = 1;
   bool envmap_stretch = false;
   int env_samples = 256;
@@ -189,6 +189,9 @@ void AddRenderOptions(CLI::App& app, RenderArgs* a) {
       ->needs(envmap);
   app.add_option("--ward-variant", a->ward_variant,
                  "ward: pcond (default, as Radiance's pcond) or paper (1-degree samples only)");
+  app.add_option("--gamut", a->gamut,
+                 "--tonemap: colours the display cannot show: desaturate (default, as Radiance's "
+                 "pcond: towards the grey of the same luminance) or clip (each channel)");
   app.add_option("--display-ev", a->display_ev,
                  "fixed display: pixel = radiance x 2^EV before the encoding, no tone mapping "
                  "(pictures compare, lamp intensity shows)");
@@ -270,6 +273,9 @@ Status ApplySource(const RenderArgs& a, const RenderSource& source, RelightReque
   }
   request->tonemap.srgb = true;
   RIG_ASSIGN_OR_RETURN(request->tonemap.ward_variant, ParseWardVariant(a.ward_variant));
+  auto gamut = ParseGamutMapping(a.gamut);
+  if (!gamut.ok()) return gamut.error().Within("--gamut");
+  request->tonemap.gamut = *gamut;
   if (!a.envmap.empty()) {
     if (a.envmap_stretch) {
       RIG_ASSIGN_OR_RETURN(cv::Mat photo, ReadRadianceFile(a.envmap));

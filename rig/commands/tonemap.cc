@@ -20,16 +20,18 @@ namespace rig {
 namespace {
 
 struct TonemapArgs {
-  std::string in, out, method_name = "ward", config_path, log_level, ward_variant = "pcond";
+  std::string in, out, method_name = "ward", config_path, log_level, ward_variant = "pcond",
+      gamut = "desaturate";
   double fov_deg = 0, focal_mm = 0, sensor_mm = 0, display_min = 0, display_max = 0;
   double exposure_scale = 0, gamma = 2.2;
   bool srgb = false, compare = false;
   int width = 0;
 };
 
-// The tone mapping the arguments ask for: a configuration's field of view and display, then
-// the lens, then the options themselves.
-Result<ToneMapOptions> OptionsFromArgs(const TonemapArgs& a) {
+// The tone mapping the arguments ask for: a configuration's field of view and display, the
+// picture's header (its primaries; its view over the configuration's field of view), then the
+// lens and --fov-deg (over the header's view), then the options themselves.
+Result<ToneMapOptions> OptionsFromArgs(const TonemapArgs& a, const PictureHeader& header) {
   ToneMapOptions options;
   if (!a.config_path.empty()) {
     RIG_ASSIGN_OR_RETURN(Config config, LoadConfigOrError(a.config_path));
@@ -40,8 +42,13 @@ Result<ToneMapOptions> OptionsFromArgs(const TonemapArgs& a) {
   if ((a.focal_mm > 0) != (a.sensor_mm > 0)) {
     return MakeError(ErrorCode::kInvalidInput, "", "--focal-length-mm and --sensor-width-mm go together");
   }
+  if (Status st = ApplyPictureHeader(header, &options); !st.ok()) return st.error().Within(a.in);
   if (a.focal_mm > 0) options.field_of_view_deg = FieldOfViewDeg(a.focal_mm, a.sensor_mm);
   if (a.fov_deg > 0) options.field_of_view_deg = a.fov_deg;
+  if (a.focal_mm > 0 || a.fov_deg > 0) options.view_extent = {0, 0};
+  auto gamut = ParseGamutMapping(a.gamut);
+  if (!gamut.ok()) return gamut.error().Within("--gamut");
+  options.gamut = *gamut;
   if (a.display_min > 0) options.display_min_cd_m2 = a.display_min;
   if (a.display_max > 0) options.display_max_cd_m2 = a.display_max;
   options.gamma = a.gamma;
@@ -70,12 +77,13 @@ int RunTonemap(int argc, char** argv) {
   app.add_option("--out", a.out, "output picture (.png, .jpg, ...)")->required();
   app.add_option("--method", a.method_name, "ward (default), linear, reinhard, drago or mantiuk");
   app.add_option("--ward-variant", a.ward_variant,
-                 "ward: pcond (default: as Radiance's pcond computes it, 16 random pixels per "
-                 "foveal sample) or paper (the 1997 paper's 1-degree samples only)");
+                 "ward: pcond (default: as Radiance's pcond computes it, with single pixels "
+                 "added to the foveal samples) or paper (the 1997 paper's 1-degree samples only)");
   app.add_option("--fov-deg", a.fov_deg,
                  "field of view in degrees, for Ward's 1-degree samples: of the larger side "
                  "(pcond), of the width (paper) "
-                 "(default: from --config, else from lens and sensor, else 40)");
+                 "(default: from lens and sensor, else the file's VIEW= line, else from --config, "
+                 "else 40)");
   app.add_option("--focal-length-mm", a.focal_mm, "lens focal length (with --sensor-width-mm)");
   app.add_option("--sensor-width-mm", a.sensor_mm, "sensor width (with --focal-length-mm)");
   app.add_option("--config", a.config_path,
@@ -86,6 +94,10 @@ int RunTonemap(int argc, char** argv) {
                  "linear method only: pixel = radiance × this (default: 99th percentile → white)");
   app.add_option("--gamma", a.gamma, "display gamma (default 2.2)");
   app.add_flag("--srgb", a.srgb, "encode with the sRGB curve instead of a pure gamma");
+  app.add_option("--gamut", a.gamut,
+                 "colours the display (sRGB primaries) cannot show once converted from the "
+                 "file's primaries: desaturate (default, as Radiance's pcond: towards the grey of "
+                 "the same luminance) or clip (each channel)");
   app.add_flag("--compare", a.compare,
                "write every method side by side, labelled (the --method is ignored)");
   app.add_option("--width", a.width, "resize each picture to this width in pixels (0: as is)");
@@ -93,10 +105,11 @@ int RunTonemap(int argc, char** argv) {
   if (auto rc = ParseCommandLine(app, argc, argv)) return *rc;
   if (auto rc = ApplyLogLevel(a.log_level)) return *rc;
 
-  auto options = OptionsFromArgs(a);
+  auto picture = ReadRadiancePicture(a.in);
+  if (!picture.ok()) return ReportError("tonemap", picture.error());
+  auto options = OptionsFromArgs(a, picture->header);
   if (!options.ok()) return ReportError("tonemap", options.error());
-  auto radiance = ReadRadianceFile(a.in);
-  if (!radiance.ok()) return ReportError("tonemap", radiance.error());
+  const cv::Mat* radiance = &picture->radiance;
   const std::vector<ToneMapMethod> methods =
       a.compare ? ComparedToneMapMethods() : std::vector<ToneMapMethod>{options->method};
   std::vector<ToneMapPanel> panels;

@@ -204,6 +204,7 @@ TEST(ToneMap, ColourRatiosArePreservedBeforeGamma) {
   for (ToneMapMethod method : {ToneMapMethod::kWard, ToneMapMethod::kLinear}) {
     ToneMapOptions o;
     o.method = method;
+    o.gamut = GamutMapping::kClip;  // desaturation changes the ratios of what is out of gamut
     auto pixels = ToneMapLinearPixels(img, o);
     ASSERT_TRUE(pixels.ok());
     int checked = 0;
@@ -225,6 +226,7 @@ TEST(ToneMap, LinearMethodSendsThePercentileToWhite) {
   for (int x = 0; x < ramp.cols; ++x) ramp.at<cv::Vec3f>(0, x) = cv::Vec3f::all(x + 1.0f);
   ToneMapOptions o;
   o.method = ToneMapMethod::kLinear;
+  o.gamut = GamutMapping::kClip;  // over-white values stay for the encoding to clip
   ToneMapReport report;
   auto out = ToneMapLinearPixels(ramp, o, &report);
   ASSERT_TRUE(out.ok());
@@ -284,7 +286,8 @@ TEST(ToneMap, FovealSamplesAreOnePerDegree) {
   ASSERT_TRUE(ToneMap(img, ToneMapOptions{}, &report).ok());
   EXPECT_EQ(report.foveal_width, 42);
   EXPECT_EQ(report.foveal_height, 28);
-  EXPECT_EQ(report.point_samples, 16 * 42 * 28);
+  // 256 stratified points per foveal sample: a 16 × 16 grid of cells in each.
+  EXPECT_EQ(report.point_samples, 256 * 42 * 28);
   cv::Mat portrait(1024, 676, CV_32FC3, cv::Scalar::all(1));
   ASSERT_TRUE(ToneMap(portrait, ToneMapOptions{}, &report).ok());
   EXPECT_EQ(report.foveal_width, 28);

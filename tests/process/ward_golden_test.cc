@@ -1,227 +1,246 @@
-// Golden test of Ward's histogram adjustment against an independent reference: a plain,
-// straightforward re-implementation of Radiance's pcond (src/px/pcond.c getahead/getfovimg,
-// pcond3.c comphist/mkcumf/mkbrmap/BLw/putmapping), written here from a reading of that
-// source and sharing no code with process/render/tonemap.cc. Its foveal image is a box filter
-// over pixel centres (pfilt -b), ours cv::resize INTER_AREA; the random single-pixel samples
-// are the same pixels (Floyd's algorithm over std::mt19937_64, re-implemented below). The
-// curve is compared as pcond -x writes it: display luminance at the centre of every bin.
+// Golden test of Ward's histogram adjustment against Radiance's pcond itself: its curves
+// (pcond -x, world and display luminance at its 100 bin centres) and its pictures (pcond |
+// ra_ppm) for the two shared HDR images, as made in shared data's hdr/pcond/ (README there).
+// Skipped where the shared data is absent.
+//
+// The curve is compared in stops (log2 of our display luminance over pcond's) at pcond's own
+// bin centres; the picture as the mean absolute difference of 8-bit codes over every channel.
+// pcond's pictures were made without -p, so pcond did no colour conversion and no gamut
+// mapping (ra_ppm clips each channel): the picture comparison takes the display's primaries
+// to be the file's and --gamut clip, and encodes our linear pixels as ra_ppm does (RGBE
+// mantissas, code = floor(256 · v^(1/2.2))), so that what is compared is the tone mapping.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <filesystem>
-#include <random>
+#include <fstream>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
-#include "process/io/exr_io.h"
+#include "process/render/radiance_file.h"
 #include "process/render/tonemap.h"
+#include "tests/support/run_rig.h"
 
 namespace rig {
 namespace {
 
 namespace fs = std::filesystem;
 
-fs::path SharedDir() {
-  if (const char* d = std::getenv("RIG_SHARED_DIR")) return d;
-  if (const char* d = std::getenv("RIG_SOURCE_DIR")) return fs::path(d) / ".." / "shared";
-  return "../shared";
-}
+constexpr double kWhiteEfficacy = 179;  // Radiance's WHTEFFICACY, lm/W
 
 struct Curve {
-  std::vector<double> world, display;  // cd/m² pairs at the bin centres (pcond -x)
-  bool linear = false;
+  std::vector<double> world, display;  // cd/m²
 };
 
-// ---- the reference -------------------------------------------------------------------------
-
-Curve ReferencePcond(const cv::Mat& rgb, double fov_deg, double ld_min, double ld_max,
-                     uint64_t seed) {
-  const int w = rgb.cols, h = rgb.rows, bins = 100;
-  std::vector<double> lum(static_cast<size_t>(w) * h);
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) {
-      const cv::Vec3f p = rgb.at<cv::Vec3f>(y, x);  // B, G, R
-      lum[static_cast<size_t>(y) * w + x] = 0.0722 * p[0] + 0.7152 * p[1] + 0.2126 * p[2];
-    }
-  // getahead: 40° on the larger side; the other by tan; getfovimg: sqrt(hn2)/FOVDIA + .5.
-  const double t = std::tan(fov_deg / 2 * M_PI / 180);
-  double hspan, vspan;
-  if (h < w) {
-    hspan = 2 * t;
-    vspan = 2 * t * h / w;
-  } else {
-    vspan = 2 * t;
-    hspan = 2 * t * w / h;
-  }
-  int fx = std::max(2, static_cast<int>(hspan / (M_PI / 180) + 0.5));
-  int fy = std::max(2, static_cast<int>(vspan / (M_PI / 180) + 0.5));
-  std::vector<double> fov;
-  for (int j = 0; j < fy; ++j)
-    for (int i = 0; i < fx; ++i) {
-      const int x0 = i * w / fx, x1 = (i + 1) * w / fx, y0 = j * h / fy, y1 = (j + 1) * h / fy;
-      double s = 0;
-      for (int y = y0; y < y1; ++y)
-        for (int x = x0; x < x1; ++x) s += lum[static_cast<size_t>(y) * w + x];
-      fov.push_back(s / ((x1 - x0) * (y1 - y0)));
-    }
-  // comphist: 16 point samples per foveal sample, distinct pixels.
-  const long long npix = static_cast<long long>(w) * h;
-  long long n = std::min<long long>(static_cast<long long>(fov.size()) * 16, npix);
-  std::vector<double> pts;
-  std::vector<char> used(static_cast<size_t>(npix), 0);
-  std::mt19937_64 gen(seed);
-  for (long long j = npix - n; j < npix; ++j) {
-    long long k = static_cast<long long>(gen() % static_cast<unsigned long long>(j + 1));
-    if (used[k]) k = j;
-    used[k] = 1;
-    pts.push_back(lum[static_cast<size_t>(k)]);
-  }
-  double lwmin = 1e300, lwmax = 0;
-  // Black pixels are left out (pcond would clamp them to its absolute 1e-7 cd/m²; our
-  // radiance is relative, so both implementations ignore them).
-  for (double l : fov)
-    if (l > 0) lwmin = std::min(lwmin, l), lwmax = std::max(lwmax, l);
-  for (double l : pts)
-    if (l > 0) lwmin = std::min(lwmin, l), lwmax = std::max(lwmax, l);
-  lwmax *= 1.01;
-  const double bwmax = std::log(lwmax);
-  const double bwmin = bwmax - (bwmax - std::log(lwmin)) * bins / (bins - 1);
-  lwmin = std::exp(bwmin);
-  std::vector<double> hist(bins, 0.0);
-  double histot = 0, bwavg = 0;
-  auto add = [&](double l, double wt) {
-    if (l <= lwmin || l >= lwmax) return;
-    const double b = std::log(l);
-    hist[static_cast<int>(bins * (b - bwmin) / (bwmax - bwmin))] += wt;
-    histot += wt;
-    bwavg += wt * b;
-  };
-  for (double l : fov) add(l, 1);
-  const double wpt = histot / static_cast<double>(n);
-  for (double l : pts) add(l, wpt);
-  bwavg /= histot;
-  hist[1] *= 0.5;
-  hist[0] += hist[1];
-  const double bldmin = std::log(ld_min), bldmax = std::log(ld_max), s = (bwmax - bwmin) / bins;
+Curve ReadCurve(const fs::path& path) {
   Curve c;
-  std::vector<double> cumf(bins + 1);
-  bool linear = bwmax - bwmin <= bldmax - bldmin;  // check2do
-  if (!linear) {
-    std::vector<double> mod = hist;
-    double trimmings;
-    do {
-      double mtot = 0;
-      for (double v : mod) mtot += v;
-      double sum = 0;
-      for (int i = 0; i < bins; ++i) {
-        cumf[i] = sum / mtot;
-        sum += mod[i];
-      }
-      cumf[bins] = 1;
-      if (mtot <= histot * 0.025) {
-        linear = true;
-        break;
-      }
-      const double ceiling = mtot * s / (bldmax - bldmin);
-      trimmings = 0;
-      for (double& v : mod)
-        if (v > ceiling) trimmings += v - ceiling, v = ceiling;
-      if (!(trimmings > mtot * 0.025)) break;
-    } while (true);
-  }
-  c.linear = linear;
-  const double scalef = std::exp(0.5 * (bldmax + bldmin)) / std::exp(bwavg);
-  for (int i = 0; i < bins; ++i) {
-    const double b = bwmin + (i + 0.5) * s;
-    double bd;
-    if (linear) {
-      bd = std::log(scalef * std::exp(b));
-    } else if (b <= bwmin + 1e-6) {
-      bd = bldmin;
-    } else if (b >= bwmax - 1e-6) {
-      bd = bldmax;
-    } else {
-      const double x = bins * (b - bwmin) / (bwmax - bwmin);
-      const int k = static_cast<int>(x);
-      bd = bldmin + (cumf[k] * (1 - (x - k)) + cumf[k + 1] * (x - k)) * (bldmax - bldmin);
-    }
-    c.world.push_back(std::exp(b));
-    c.display.push_back(std::exp(bd));
+  std::ifstream in(path);
+  double w = 0, d = 0;
+  while (in >> w >> d) {
+    c.world.push_back(w);
+    c.display.push_back(d);
   }
   return c;
 }
 
-// ---- the comparison --------------------------------------------------------------------------
-
-cv::Mat Read(const fs::path& path) {
-  if (path.extension() == ".exr") {
-    auto r = ReadRgbExr(path.string());
-    return r.ok() ? *r : cv::Mat();
-  }
-  return cv::imread(path.string(), cv::IMREAD_ANYDEPTH | cv::IMREAD_COLOR);
-}
-
-struct Difference {
-  double rms_stops = 0, max_stops = 0;
+struct Case {
+  const char* image;       // in shared/data/hdr/
+  const char* name;        // the prefix of pcond's files
+  bool radiance_weights;   // pcond's picture and plain curve: Radiance's default primaries
 };
 
-Difference Compare(const WardMapping& m, const Curve& ref) {
-  Difference d;
+struct Loaded {
+  RadiancePicture picture;
+  Curve curve_radiance, curve_709;
+  cv::Mat pcond_png;  // BGR
+};
+
+bool Load(const Case& c, Loaded* out, std::string* why) {
+  const fs::path hdr = fs::path(testing::SharedDir()) / "data" / "hdr";
+  const fs::path image = hdr / c.image;
+  const fs::path curve = hdr / "pcond" / (std::string(c.name) + ".pcond_curve.txt");
+  const fs::path curve709 = hdr / "pcond" / (std::string(c.name) + "_709.pcond_curve.txt");
+  const fs::path png = hdr / "pcond" / (std::string(c.name) + ".pcond.png");
+  for (const fs::path& p : {image, curve, curve709, png}) {
+    if (!fs::exists(p)) {
+      *why = p.string() + " is not there (shared data absent)";
+      return false;
+    }
+  }
+  auto picture = ReadRadiancePicture(image.string());
+  if (!picture.ok()) {
+    *why = picture.error().ToString();
+    return false;
+  }
+  out->picture = *picture;
+  // pcond read Desk.exr converted to RGBE, its negative values clipped to 0 (README).
+  cv::max(out->picture.radiance, 0, out->picture.radiance);
+  out->curve_radiance = ReadCurve(curve);
+  out->curve_709 = ReadCurve(curve709);
+  out->pcond_png = cv::imread(png.string(), cv::IMREAD_COLOR);
+  return out->curve_radiance.world.size() == 100 && out->curve_709.world.size() == 100 &&
+         !out->pcond_png.empty();
+}
+
+// The options pcond's run had: the header's view and aspect, the given weights.
+ToneMapOptions OptionsFor(const RadiancePicture& p, const Chromaticities& primaries) {
+  ToneMapOptions o;
+  EXPECT_TRUE(ApplyPictureHeader(p.header, &o).ok());
+  o.picture_primaries = primaries;
+  return o;
+}
+
+double CurveRmsStops(const WardMapping& m, const Curve& ref) {
   double sum = 0;
   for (size_t i = 0; i < ref.world.size(); ++i) {
-    const double e = std::log2(m.DisplayLuminance(ref.world[i]) / ref.display[i]);
+    const double e = std::log2(m.DisplayLuminance(ref.world[i] / kWhiteEfficacy) / ref.display[i]);
     sum += e * e;
-    d.max_stops = std::max(d.max_stops, std::abs(e));
   }
-  d.rms_stops = std::sqrt(sum / ref.world.size());
-  return d;
+  return std::sqrt(sum / ref.world.size());
 }
 
-class WardGolden : public ::testing::TestWithParam<const char*> {};
+// ra_ppm's encoding of pcond's output: each value rounded down to its RGBE mantissa (8 bits,
+// shared exponent), taken at the mantissa's centre, then floor(256 · v^(1/2.2)), 255 at most.
+cv::Mat EncodeAsRaPpm(const cv::Mat& linear) {
+  cv::Mat out(linear.size(), CV_8UC3);
+  for (int y = 0; y < linear.rows; ++y) {
+    for (int x = 0; x < linear.cols; ++x) {
+      const cv::Vec3f v = linear.at<cv::Vec3f>(y, x);
+      const float top = std::max({v[0], v[1], v[2]});
+      cv::Vec3b code(0, 0, 0);
+      if (top > 1e-32f) {
+        int e = 0;
+        const double scale = std::frexp(top, &e) * 256.0 / top;  // mantissa = v · scale
+        for (int c = 0; c < 3; ++c) {
+          const int mant = static_cast<int>(std::max(0.0, v[c] * scale));
+          const double q = (mant + 0.5) / 256.0 * std::ldexp(1.0, e);
+          code[c] = static_cast<uchar>(std::min(255.0, std::floor(256 * std::pow(q, 1 / 2.2))));
+        }
+      }
+      out.at<cv::Vec3b>(y, x) = code;
+    }
+  }
+  return out;
+}
 
-TEST_P(WardGolden, DefaultCurveMatchesAnIndependentPcondWithinFiveHundredthsOfAStopRms) {
-  const fs::path path = SharedDir() / "data" / "hdr" / GetParam();
-  if (!fs::exists(path)) GTEST_SKIP() << path << " is not there";
-  const cv::Mat rgb = Read(path);
-  ASSERT_EQ(rgb.type(), CV_32FC3);
-  const ToneMapOptions pcond;  // the default: WardVariant::kPcond, 40°, 1 … 100 cd/m²
-  ASSERT_EQ(pcond.ward_variant, WardVariant::kPcond);
-  const Curve ref = ReferencePcond(rgb, pcond.field_of_view_deg, pcond.display_min_cd_m2,
-                                   pcond.display_max_cd_m2, pcond.ward_seed);
-  ASSERT_FALSE(ref.linear);
-  ToneMapReport report;
-  const WardMapping ours = ComputeWardMappingForImage(rgb, pcond, &report);
-  ASSERT_FALSE(ours.linear);
-  const Difference d = Compare(ours, ref);
-  ToneMapOptions paper;
-  paper.ward_variant = WardVariant::kPaper;
-  const Difference dp = Compare(ComputeWardMappingForImage(rgb, paper), ref);
-  std::printf("%s: pcond variant vs reference %.4f stops RMS, %.4f max; paper variant %.4f RMS, "
-              "%.4f max (foveal %dx%d, %d point samples)\n",
-              GetParam(), d.rms_stops, d.max_stops, dp.rms_stops, dp.max_stops,
-              report.foveal_width, report.foveal_height, report.point_samples);
-  // What the default picture gained: mean 8-bit green code, pcond against paper (sRGB).
-  ToneMapOptions pcond_srgb = pcond, paper_srgb = paper;
-  pcond_srgb.srgb = paper_srgb.srgb = true;
-  auto pic_pcond = ToneMap(rgb, pcond_srgb), pic_paper = ToneMap(rgb, paper_srgb);
-  ASSERT_TRUE(pic_pcond.ok() && pic_paper.ok());
+double MeanAbsCodes(const cv::Mat& a, const cv::Mat& b) {
   cv::Mat diff;
-  cv::absdiff(*pic_pcond, *pic_paper, diff);
-  std::printf("%s: 8-bit sRGB picture, pcond mean %.1f, paper mean %.1f, mean |difference| %.2f "
-              "codes\n",
-              GetParam(), cv::mean(*pic_pcond)[1], cv::mean(*pic_paper)[1], cv::mean(diff)[1]);
-  RecordProperty("rms_stops", std::to_string(d.rms_stops));
-  RecordProperty("max_stops", std::to_string(d.max_stops));
-  EXPECT_LT(d.rms_stops, 0.05);
-  EXPECT_LT(d.max_stops, 0.15);
-  // The reference would catch the paper's variant: it is measurably off.
-  EXPECT_GT(dp.rms_stops, 2 * d.rms_stops);
+  cv::absdiff(a, b, diff);
+  const cv::Scalar m = cv::mean(diff);
+  return (m[0] + m[1] + m[2]) / 3;
 }
 
-INSTANTIATE_TEST_SUITE_P(SharedData, WardGolden, ::testing::Values("mpi_atrium_3.hdr", "Desk.exr"));
+struct SeedSpread {
+  double median = 0, worst = 0;
+};
+
+SeedSpread OverSeeds(const cv::Mat& radiance, ToneMapOptions o, const Curve& ref,
+                     WardSampling sampling) {
+  std::vector<double> rms;
+  o.ward_sampling = sampling;
+  for (uint64_t seed = 1; seed <= 8; ++seed) {
+    o.ward_seed = seed;
+    rms.push_back(CurveRmsStops(ComputeWardMappingForImage(radiance, o), ref));
+  }
+  std::sort(rms.begin(), rms.end());
+  return {(rms[3] + rms[4]) / 2, rms.back()};
+}
+
+class WardGolden : public ::testing::TestWithParam<Case> {};
+
+// Thresholds: the worst figure measured on the two shared images (printed by this test; see
+// docs/render.md) with a margin of 0.002 stops and 0.1 codes: seed 1 at most 0.0059 stops RMS,
+// the worst of seeds 1-8 0.0107, the pictures 0.278 codes.
+constexpr double kMaxCurveRmsStops = 0.008;
+constexpr double kMaxWorstSeedRmsStops = 0.0127;
+constexpr double kMaxPictureCodes = 0.38;
+
+TEST_P(WardGolden, CurveWithinAHundredthOfAStopOfPcondsOwnOnEverySeed) {
+  Loaded l;
+  std::string why;
+  if (!Load(GetParam(), &l, &why)) GTEST_SKIP() << why;
+  const cv::Mat& rgb = l.picture.radiance;
+  struct Weights {
+    const char* name;
+    Chromaticities primaries;
+    const Curve* ref;
+  };
+  for (const Weights& w : {Weights{"radiance", RadiancePrimaries(), &l.curve_radiance},
+                           Weights{"rec709", Rec709Primaries(), &l.curve_709}}) {
+    const ToneMapOptions o = OptionsFor(l.picture, w.primaries);
+    ToneMapReport report;
+    const WardMapping ours = ComputeWardMappingForImage(rgb, o, &report);
+    ASSERT_FALSE(ours.linear);
+    const double rms = CurveRmsStops(ours, *w.ref);
+    const SeedSpread strat = OverSeeds(rgb, o, *w.ref, WardSampling::kStratified);
+    ToneMapOptions pcond_draw = o;  // pcond's own: 16 random pixels per foveal sample
+    pcond_draw.ward_point_samples_per_foveal = 16;
+    const SeedSpread random16 = OverSeeds(rgb, pcond_draw, *w.ref, WardSampling::kRandom);
+    const SeedSpread strat16 = OverSeeds(rgb, pcond_draw, *w.ref, WardSampling::kStratified);
+    ToneMapOptions every = o;  // every pixel: the expectation of pcond's draw, no seed
+    every.ward_point_samples_per_foveal = 1000;
+    every.ward_sampling = WardSampling::kRandom;
+    const double rms_every = CurveRmsStops(ComputeWardMappingForImage(rgb, every), *w.ref);
+    ToneMapOptions paper = o;
+    paper.ward_variant = WardVariant::kPaper;
+    const double rms_paper = CurveRmsStops(ComputeWardMappingForImage(rgb, paper), *w.ref);
+    std::printf("%s %s weights: curve vs pcond %.4f stops RMS (default: seed 1, foveal %dx%d, "
+                "%d point samples stratified); seeds 1-8: default median %.4f worst %.4f | 16 "
+                "random per foveal sample (pcond's draw) median %.4f worst %.4f | 16 stratified "
+                "median %.4f worst %.4f | every pixel %.4f | paper variant %.4f\n",
+                GetParam().image, w.name, rms, report.foveal_width, report.foveal_height,
+                report.point_samples, strat.median, strat.worst, random16.median, random16.worst,
+                strat16.median, strat16.worst, rms_every, rms_paper);
+    EXPECT_LT(rms, kMaxCurveRmsStops) << w.name;
+    EXPECT_LT(strat.worst, kMaxWorstSeedRmsStops) << w.name;
+    // The comparison would catch the paper's variant: it is measurably off.
+    EXPECT_GT(rms_paper, 4 * rms) << w.name;
+  }
+  // Before this golden test: Rec. 709 weights whatever the file, 16 random pixels per foveal
+  // sample, against pcond's curve of the file as it is (Radiance's primaries).
+  ToneMapOptions before = OptionsFor(l.picture, Rec709Primaries());
+  before.ward_point_samples_per_foveal = 16;
+  before.ward_sampling = WardSampling::kRandom;
+  const double rms_before = CurveRmsStops(ComputeWardMappingForImage(rgb, before), l.curve_radiance);
+  const double rms_after = CurveRmsStops(
+      ComputeWardMappingForImage(rgb, OptionsFor(l.picture, RadiancePrimaries())), l.curve_radiance);
+  std::printf("%s: pcond's default curve, before (Rec. 709 weights, 16 random) %.4f stops RMS, "
+              "after %.4f\n",
+              GetParam().image, rms_before, rms_after);
+}
+
+TEST_P(WardGolden, PictureWithinHalfACodeOfPcondsOwn) {
+  Loaded l;
+  std::string why;
+  if (!Load(GetParam(), &l, &why)) GTEST_SKIP() << why;
+  // pcond's pictures: the file as pcond saw it (no PRIMARIES line: Radiance's primaries),
+  // shown on a display of the same primaries, each channel clipped.
+  ToneMapOptions o = OptionsFor(l.picture, RadiancePrimaries());
+  o.display_primaries = RadiancePrimaries();
+  o.gamut = GamutMapping::kClip;
+  auto linear = ToneMapLinearPixels(l.picture.radiance, o);
+  ASSERT_TRUE(linear.ok()) << linear.error().ToString();
+  const cv::Mat ours = EncodeAsRaPpm(*linear);
+  ASSERT_EQ(ours.size(), l.pcond_png.size());
+  const double codes = MeanAbsCodes(ours, l.pcond_png);
+  // The product's own encoding (rounded gamma 2.2) of the same pixels, for comparison.
+  ToneMapOptions product = o;
+  auto encoded = ToneMap(l.picture.radiance, product);
+  ASSERT_TRUE(encoded.ok());
+  const double codes_product = MeanAbsCodes(*encoded, l.pcond_png);
+  std::printf("%s: picture vs pcond | ra_ppm: %.3f codes mean |difference| (ra_ppm's encoding); "
+              "%.3f with rig's rounded encoding\n",
+              GetParam().image, codes, codes_product);
+  EXPECT_LT(codes, kMaxPictureCodes);
+}
+
+INSTANTIATE_TEST_SUITE_P(SharedData, WardGolden,
+                         ::testing::Values(Case{"mpi_atrium_3.hdr", "atrium", true},
+                                           Case{"Desk.exr", "desk", true}),
+                         [](const auto& info) { return std::string(info.param.name); });
 
 }  // namespace
 }  // namespace rig

@@ -172,6 +172,7 @@ uniform vec3 uInvGain;  // HDR: the capture lamp's radiance / the gain the plane
 uniform int uMode;  // 0 relit, 1 plain image (normals / albedo)
 uniform sampler2D uImage, uLut;
 uniform vec2 uLutRange;  // ln luminance at the LUT's ends
+uniform vec3 uLuma;      // luminance weights (R, G, B) rig render weighs with
 uniform int uHdr;
 in vec2 vUv;
 out vec4 outColor;
@@ -198,7 +199,7 @@ ${sum}    rad += decode(v) * uColor[l];
   if (uHdr == 1) {
     rad *= uInvGain;
     // Ward's global curve as rig view computed it: display luminance (encoded) from ln Lw.
-    float lw = dot(rad, vec3(0.2126, 0.7152, 0.0722));
+    float lw = dot(rad, uLuma);
     if (lw <= 0.0) { outc = vec3(0.0); }
     else {
       float u = clamp((log(lw) - uLutRange.x) / (uLutRange.y - uLutRange.x), 0.0, 1.0);
@@ -260,6 +261,8 @@ ${sum}    rad += decode(v) * uColor[l];
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
     gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
     gl.uniform2f(U('uLutRange'), display.lut_log_min, display.lut_log_max);
+    const w = display.luminance_rgb || [0.2126, 0.7152, 0.0722];
+    gl.uniform3f(U('uLuma'), w[0], w[1], w[2]);
     gl.uniform1i(U('uHdr'), 1);
     const e = display.lamp_rgb || [1, 1, 1];
     gl.uniform3f(U('uInvGain'), e[0] / display.gain, e[1] / display.gain, e[2] / display.gain);
