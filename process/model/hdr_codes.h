@@ -4,7 +4,10 @@
 // back to linear reflectance (and renders give radiance, as the harmonic families' do).
 #pragma once
 
+#include <algorithm>
 #include <array>
+#include <cmath>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -48,6 +51,36 @@ struct HdrCurveOptions {
   double max_stops = 16;  // the floor no lower than max · 2^-max_stops
 };
 HdrCodeCurve FitHdrCurve(const std::vector<cv::Mat>& rho_bgr, const HdrCurveOptions& options);
+
+// The same choice made from radiance maps read in any order of row bands (a session's maps as
+// they are held, never all in floats at once): the sample-channels are FitHdrCurve's own
+// (every stride-th of the maps laid end to end, 2^20 in all), ρ = radiance ÷ lamp as
+// SamplesFromMaps divides it, and the quantiles do not depend on the order the bands come in,
+// so any band order gives the curve of the whole maps.
+class HdrCurveSampler {
+ public:
+  HdrCurveSampler(size_t maps, size_t pixels, const std::array<double, 3>& lamp_radiance_rgb);
+  // Rows of map `map` (CV_32FC3 BGR radiance, continuous) whose first pixel is `first_pixel`
+  // of the map. Not thread-safe.
+  void Add(size_t map, size_t first_pixel, const cv::Mat& radiance_bgr_rows);
+  HdrCodeCurve Curve(const HdrCurveOptions& options) const;
+
+ private:
+  size_t pixels_, stride_;
+  std::array<double, 3> lamp_;
+  std::vector<float> all_, positive_;
+};
+// HdrCurveSampler over whole maps (all one size): the curve of their reflectance.
+HdrCodeCurve FitHdrCurveOfRadiance(const std::vector<cv::Mat>& radiance_bgr,
+                                   const std::array<double, 3>& lamp_radiance_rgb,
+                                   const HdrCurveOptions& options);
+
+// One sample's code: radiance ÷ the lamp's radiance in that channel, encoded and rounded
+// (negative and NaN as 0, beyond max as 255) — what SamplesFromMaps stores.
+inline uint8_t HdrCode(float radiance, double lamp, const HdrCodeCurve& curve) {
+  const double code = std::round(curve.Encode(radiance / lamp));
+  return static_cast<uint8_t>(std::isfinite(code) ? std::clamp(code, 0.0, 255.0) : 0.0);
+}
 
 // Multi-light samples of radiance maps (CV_32FC3 BGR, one per lamp, all one size): ρ =
 // radiance ÷ lamp radiance (R, G, B) per channel, encoded and rounded to codes (negative and
