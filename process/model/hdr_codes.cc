@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <thread>
 
 #include "process/model/samples.h"
 
@@ -118,9 +120,37 @@ std::vector<cv::Mat> ReflectanceOf(const std::vector<cv::Mat>& radiance_bgr,
   return out;
 }
 
+namespace {
+
+// The smallest positive finite float whose code is at least `code` (+inf: none).
+float FirstOfCode(const HdrCodeCurve& curve, double lamp, int code) {
+  uint32_t lo = 1, hi = 0x7f800000u;  // [lo, hi): candidates; hi is +inf
+  while (lo < hi) {
+    const uint32_t mid = lo + (hi - lo) / 2;
+    float f;
+    std::memcpy(&f, &mid, sizeof f);
+    if (HdrCode(f, lamp, curve) >= code) {
+      hi = mid;
+    } else {
+      lo = mid + 1;
+    }
+  }
+  float f;
+  std::memcpy(&f, &lo, sizeof f);
+  return f;
+}
+
+}  // namespace
+
+HdrCodeTable::HdrCodeTable(const HdrCodeCurve& curve, double lamp) : curve_(curve), lamp_(lamp) {
+  for (int k = 1; k <= 254; ++k) first_[k - 1] = FirstOfCode(curve, lamp, k);
+  top_ = FirstOfCode(curve, lamp, 255);
+}
+
 LightSamples SamplesFromMaps(const std::vector<cv::Mat>& radiance_bgr,
                              const std::vector<Vec3>& directions,
-                             const std::array<double, 3>& lamp, const HdrCodeCurve& curve) {
+                             const std::array<double, 3>& lamp, const HdrCodeCurve& curve,
+                             int threads) {
   LightSamples s;
   if (radiance_bgr.empty()) return s;
   s.width = radiance_bgr[0].cols;
@@ -129,17 +159,26 @@ LightSamples SamplesFromMaps(const std::vector<cv::Mat>& radiance_bgr,
   const size_t lights = radiance_bgr.size();
   const size_t pixels = s.pixels();
   s.values.resize(pixels * lights * 3);
-  for (size_t l = 0; l < lights; ++l) {
+  const std::array<HdrCodeTable, 3> code = {HdrCodeTable(curve, lamp[0]), HdrCodeTable(curve, lamp[1]),
+                                            HdrCodeTable(curve, lamp[2])};
+  threads = std::max(1, std::min<int>(threads, static_cast<int>(lights)));
+  auto body = [&](size_t first) {
+  for (size_t l = first; l < lights; l += static_cast<size_t>(threads)) {
     const cv::Mat& m = radiance_bgr[l];
     for (int y = 0; y < s.height; ++y) {
       const float* row = m.ptr<float>(y);
       for (int x = 0; x < s.width; ++x) {
         const size_t p = static_cast<size_t>(y) * s.width + x;
         for (int c = 0; c < 3; ++c)
-          s.values[(p * lights + l) * 3 + c] = HdrCode(row[x * 3 + (2 - c)], lamp[c], curve);
+          s.values[(p * lights + l) * 3 + c] = code[c](row[x * 3 + (2 - c)]);
       }
     }
   }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(body, static_cast<size_t>(t));
+  body(0);
+  for (auto& t : pool) t.join();
   return s;
 }
 

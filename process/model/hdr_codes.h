@@ -86,10 +86,31 @@ inline uint8_t HdrCode(float radiance, double lamp, const HdrCodeCurve& curve) {
 // radiance ÷ lamp radiance (R, G, B) per channel, encoded and rounded to codes (negative and
 // NaN ρ as 0, beyond max as 255). The usable mask is left empty: with the thresholds of
 // HdrMaskThresholds the censored samples are exactly the clamped codes.
+// `threads` share the maps (the codes do not depend on it).
 LightSamples SamplesFromMaps(const std::vector<cv::Mat>& radiance_bgr,
                              const std::vector<Vec3>& directions,
                              const std::array<double, 3>& lamp_radiance_rgb,
-                             const HdrCodeCurve& curve);
+                             const HdrCodeCurve& curve, int threads = 1);
+// HdrCode of one channel by table: the smallest radiance of each code 1..255 found once (a
+// binary search over the floats' bit patterns, the code rising with the radiance), then each
+// value's code is its place among them — the same code as HdrCode for every float, without a
+// power or logarithm per sample. Beyond the code-255 threshold, and for NaN and infinities,
+// HdrCode itself.
+class HdrCodeTable {
+ public:
+  HdrCodeTable(const HdrCodeCurve& curve, double lamp);
+  uint8_t operator()(float radiance) const {
+    if (!(radiance > 0) || !(radiance < top_)) return HdrCode(radiance, lamp_, curve_);
+    return static_cast<uint8_t>(std::upper_bound(first_.begin(), first_.end(), radiance) - first_.begin());
+  }
+
+ private:
+  HdrCodeCurve curve_;
+  double lamp_;
+  std::array<float, 254> first_;  // first_[k - 1]: the smallest radiance of code k, k = 1..254
+  float top_;                     // the smallest of code 255
+};
+
 // Reflectance maps (radiance ÷ lamp radiance), CV_32FC3 BGR.
 std::vector<cv::Mat> ReflectanceOf(const std::vector<cv::Mat>& radiance_bgr,
                                    const std::array<double, 3>& lamp_radiance_rgb);

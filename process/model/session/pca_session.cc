@@ -125,7 +125,7 @@ Result<PcaSessionFit> FitPcaHdrFromBands(MapBands& maps, const std::vector<Vec3>
   std::vector<cv::Mat> bgr;
   RIG_TRY(WritePcaPlanes(pass, [&](int y0, int rows, std::vector<uint8_t>* values) -> Status {
     RIG_TRY(ReadRows(maps, y0, y0 + rows, &bgr));
-    *values = SamplesFromMaps(bgr, directions, lamp, out.curve).values;
+    *values = SamplesFromMaps(bgr, directions, lamp, out.curve, threads).values;
     return Ok();
   }, out_folder, &out.planes));
   RIG_TRY(WritePcaInfo(out_folder, out.width, out.height, basis, quant, directions, po.jpeg_quality,

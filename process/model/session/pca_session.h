@@ -30,7 +30,7 @@ struct PcaSessionFit {
 // The candidates are fitted and scored on the maps' central region of at most
 // kPcaHdrChoiceSide × kPcaHdrChoiceSide pixels (the whole image when it is no larger), so that
 // the choice costs the same at any size; the model is then fitted to every pixel.
-inline constexpr int kPcaHdrChoiceSide = 1024;
+inline constexpr int kPcaHdrChoiceSide = 512;
 cv::Rect PcaHdrChoiceRegion(int width, int height);
 
 // `maps`: the session's radiance maps (CV_32FC3 BGR), one per direction; ρ = radiance ÷ lamp.
