@@ -8,8 +8,12 @@
 // (MapStore::Add, what the capture does after each merge), then the model fitted from memory
 // the moment the last map is in, beside the fit from the files, and the two models compared.
 //
+// With --families sh,pca (default sh), the same for the PCA family's session model
+// (FitPcaHdrFromBands, what a session with [process] model_family = "pca" fits): from the
+// maps in memory and from the files, the folders compared byte for byte, and its stages.
+//
 //   build/bench/fit_bench [--max-mp 6] [--dir /tmp] [--only-last-frame]
-//                         [--scenes smooth,glossy] [--compressions zip,none]
+//                         [--scenes smooth,glossy] [--compressions zip,none] [--families sh,pca]
 #include <spawn.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -33,6 +37,7 @@
 #include "process/model/harmonic/fit.h"
 #include "process/model/session/map_store.h"
 #include "process/model/session/model_stream.h"
+#include "process/model/session/pca_session.h"
 
 #include <ImfChannelList.h>
 #include <ImfFrameBuffer.h>
@@ -160,6 +165,71 @@ double WriteWith(const rig::ExrImage& image, const std::string& path, Imf::Compr
   return Seconds(t);
 }
 
+std::string FileBytes(const fs::path& p) {
+  std::FILE* f = std::fopen(p.c_str(), "rb");
+  if (f == nullptr) return {};
+  std::string out;
+  char buf[1 << 16];
+  size_t n = 0;
+  while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) out.append(buf, n);
+  std::fclose(f);
+  return out;
+}
+
+// Whether two folders hold the same files, byte for byte.
+bool SameFolders(const fs::path& a, const fs::path& b) {
+  size_t na = 0, nb = 0;
+  for (const auto& e : fs::directory_iterator(a)) {
+    ++na;
+    if (FileBytes(e.path()) != FileBytes(b / e.path().filename())) return false;
+  }
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(b)) ++nb;
+  return na == nb && na > 0;
+}
+
+// The PCA family's session model at the last frame: from the maps in memory (timed from the
+// last map), then from the files; one table row.
+bool PcaLastFrame(const rig::MapStore& store, const std::vector<std::string>& keys,
+                  const rig::StreamFitInput& in, const fs::path& folder, int mp,
+                  const std::string& scene) {
+  rig::PcaHdrChoiceOptions o;
+  o.threads = 2;
+  o.scratch = (folder / "pca-choice").string();
+  if (std::getenv("RIG_BENCH_NO_SYNC") == nullptr) ::sync();
+  auto t = Clock::now();
+  auto bands = store.Bands(keys);
+  if (!bands.ok()) return false;
+  auto mem = rig::FitPcaHdrFromBands(**bands, in.directions, in.lamp_radiance_rgb, in.light_frame, o,
+                                     (folder / "pca-memory").string());
+  const double after_last = Seconds(t);
+  if (!mem.ok()) {
+    std::fprintf(stderr, "%s\n", mem.error().ToString().c_str());
+    return false;
+  }
+  const double rss = PeakRssMb();
+  if (std::getenv("RIG_BENCH_NO_SYNC") == nullptr) ::sync();
+  t = Clock::now();
+  auto files_bands = rig::OpenMapFiles(in.paths);
+  if (!files_bands.ok()) return false;
+  auto files = rig::FitPcaHdrFromBands(**files_bands, in.directions, in.lamp_radiance_rgb,
+                                       in.light_frame, o, (folder / "pca-files").string());
+  const double batch = Seconds(t);
+  if (!files.ok()) return false;
+  const bool same = SameFolders(folder / "pca-memory", folder / "pca-files");
+  double bytes = 0;
+  for (const auto& e : fs::directory_iterator(folder / "pca-memory")) bytes += double(e.file_size());
+  const double pixels = double(mem->width) * mem->height;
+  std::printf("  %-7s %-7s pca k%-2d %5.2f B/px  after last map %7.2f s (choice %.2f on %dx%d, sample "
+              "%.2f, planes %.2f)  from files %7.2f s  same bytes: %s  peak RSS %.0f MB\n",
+              (std::to_string(mp) + " MP").c_str(), scene.c_str(), mem->components, bytes / pixels,
+              after_last, mem->choice_s, mem->choice_region.width, mem->choice_region.height,
+              mem->gather_s, mem->write_s, batch, same ? "yes" : "NO", rss);
+  std::fflush(stdout);
+  fs::remove_all(folder / "pca-files");
+  fs::remove_all(folder / "pca-memory");
+  return same;
+}
+
 }  // namespace
 
 // The child: fits the session in `folder` (a separate process, started with exec, so that
@@ -198,7 +268,8 @@ int main(int argc, char** argv) {
   }
   int max_mp = 6;
   bool only_last_frame = false;
-  std::vector<std::string> scenes = {"smooth", "glossy"}, compressions = {"zip", "none"};
+  std::vector<std::string> scenes = {"smooth", "glossy"}, compressions = {"zip", "none"},
+                           families = {"sh"};
   auto split = [](const std::string& list) {
     std::vector<std::string> out;
     std::string item;
@@ -224,7 +295,10 @@ int main(int argc, char** argv) {
     if (k == "--dir") dir = argv[++i];
     if (k == "--scenes") scenes = split(argv[++i]);
     if (k == "--compressions") compressions = split(argv[++i]);
+    if (k == "--families") families = split(argv[++i]);
   }
+  const bool with_sh = std::find(families.begin(), families.end(), "sh") != families.end();
+  const bool with_pca = std::find(families.begin(), families.end(), "pca") != families.end();
   rig::SetLogLevel(std::getenv("RIG_LOG_LEVEL") ? "" : "warn");
   rig::ReuseFreedImageMemory();  // as rig itself does at start
   std::vector<double> hs, vs;
@@ -358,7 +432,8 @@ int main(int argc, char** argv) {
       }
       rig::FitOptions o;
       o.threads = 2;
-      for (const std::string& compression : compressions) {
+      if (with_pca && !PcaLastFrame(store, keys, in, folder, mp, scene)) return 1;
+      for (const std::string& compression : (with_sh ? compressions : std::vector<std::string>{})) {
         in.compression = *rig::ParseExrCompression(compression);
         const std::string from_memory = (folder / "memory.exr").string(), from_files = (folder / "files.exr").string();
         // The maps' files written just now are still being written back to the disk; in a
@@ -389,7 +464,7 @@ int main(int argc, char** argv) {
         fs::remove(from_files);
       }
       const std::string from_memory = (folder / "memory.exr").string();
-      if (mp == 1 && scene == scenes.back()) {
+      if (mp == 1 && scene == scenes.back() && with_sh) {
         // What the model's compression costs: the same coefficients written with each of
         // OpenEXR's lossless compressions for half (2 threads), and read back.
         auto model = rig::ReadExr(from_memory, 2);

@@ -11,9 +11,11 @@
 #include "capture/plan/pose.h"
 #include "config/console.h"
 #include "config/log.h"
+#include "process/model/any/load_model.h"
 #include "process/model/pca/pca_hdr.h"
 #include "process/model/session/map_fit.h"
 #include "process/model/session/model_stream.h"
+#include "process/model/session/pca_session.h"
 
 namespace rig {
 namespace {
@@ -87,8 +89,9 @@ std::string SessionFitReport(const Session& session, const StreamFitOutput& fit,
 }
 
 // The PCA family's session model (model/pca/, relight's web format with the HDR values in
-// info.json): every map read whole from `bands` — the maps in memory or their files, the same
-// values either way, so the same model — and its value curve and size chosen per byte.
+// info.json), fitted band by band from `bands` — the maps in memory or their files, the same
+// values either way, so the same model — its value curve and size chosen per byte on the
+// maps' central region (FitPcaHdrFromBands), the folder written whole.
 Status FitSessionPca(const Session& session, MapBands& bands, const StreamFitInput& in,
                      const std::string& source) {
   auto log = Log("process");
@@ -99,37 +102,39 @@ Status FitSessionPca(const Session& session, MapBands& bands, const StreamFitInp
                      "[process] model_family = \"pca\" does not model a near lamp's fall-off yet: "
                      "use \"harmonic\" with [light_frame] lamp_distance_mm");
   }
-  std::vector<cv::Mat> bgr, valid;
-  try {
-    RIG_TRY(bands.Read(0, bands.height(), &bgr, &valid));
-  } catch (const std::exception& e) {
-    return MakeError(ErrorCode::kIo, layout.hdr().string(), "cannot read the radiance maps: {}", e.what());
-  }
   RIG_ASSIGN_OR_RETURN(fs::path model_dir, EnsureSessionFolder(layout.root, "model"));
   PcaHdrChoiceOptions o;
   o.max_bytes_per_pixel = config.process.pca_max_bytes_per_pixel;
   o.threads = config.process.threads;
   o.scratch = (model_dir / ".pca-choice").string();
-  RIG_ASSIGN_OR_RETURN(PcaHdrFit fit, FitPcaHdrAuto(bgr, in.directions, in.lamp_radiance_rgb,
-                                                    config.light_frame, o));
   const fs::path out = model_dir / "pca";
-  RIG_TRY(fit.model.Save(out.string()));
-  const double pixels = static_cast<double>(fit.model.width()) * fit.model.height();
+  PcaSessionFit fit;
+  RIG_TRY(WriteModelFolder(out.string(), [&](const std::string& dir) -> Status {
+    RIG_ASSIGN_OR_RETURN(fit, FitPcaHdrFromBands(bands, in.directions, in.lamp_radiance_rgb,
+                                                 config.light_frame, o, dir));
+    return Ok();
+  }));
+  const double pixels = static_cast<double>(fit.width) * fit.height;
   const double bpp = static_cast<double>(FolderBytes(out.string())) / pixels;
   log->info("model fitted from {}", source);
+  const cv::Rect& r = fit.choice_region;
   const std::string report = fmt::format(
       "# The session's model\n\nPCA of the reflectance (radiance / lamp radiance) of {} radiance "
-      "maps, {:.2f} B/px on disk, fitted in {:.2f} s from {}.\n\n{}.\n\nEvery candidate fitted "
-      "without every 6th lamp, written, read back and scored at the lamps held out (relative RMS "
-      "of linear reflectance):\n\n{}",
-      bgr.size(), bpp, fit.time_s, source, fit.reason, PcaHdrChoiceMarkdown(fit));
+      "maps, {:.2f} B/px on disk, fitted in {:.2f} s from {} (the choice {:.2f} s, the curve and "
+      "components {:.2f} s, every pixel's coefficients and the planes {:.2f} s).\n\n{}.\n\n"
+      "Every candidate fitted to the {}x{} pixels at ({}, {}){} without every 6th lamp, written, "
+      "read back and scored at the lamps held out (relative RMS of linear reflectance):\n\n{}",
+      in.directions.size(), bpp, fit.time_s, source, fit.choice_s, fit.gather_s, fit.write_s,
+      fit.choice.reason, r.width, r.height, r.x, r.y,
+      r.width == fit.width && r.height == fit.height ? " (the whole image)" : " (the central region)",
+      PcaHdrChoiceMarkdown(fit.choice));
   Status st = WriteFileAtomic(layout.model() / "report.md", report);
   if (!st.ok()) log->warn("{}", st.error().ToString());
   ConsoleLine(stdout, fmt::format("model: {} (pca, {} components, {}x{} grid, JPEG q{}, {} curve, "
                                   "{:.1f} B/px; {:.2f} s)",
-                                  out.string(), fit.model.components(), fit.model.basis().resolution,
-                                  fit.model.basis().resolution, fit.model.jpeg_quality(),
-                                  HdrCurveName(fit.model.hdr()->curve.curve), bpp, fit.time_s));
+                                  out.string(), fit.components, fit.choice.options.grid_resolution,
+                                  fit.choice.options.grid_resolution, fit.choice.options.jpeg_quality,
+                                  HdrCurveName(fit.curve.curve), bpp, fit.time_s));
   return Ok();
 }
 

@@ -119,6 +119,16 @@ Result<ExportSource> ConvertForExport(const std::string& path, const ExportReque
   } else {
     RIG_ASSIGN_OR_RETURN(s.model, LoadAnyModel(path));
     if (request.format == "relight" && s.model->family() == "pca-bilinear" && request.basis.empty()) {
+      // A session's PCA model holds reflectance of radiance maps through an HDR curve
+      // (info.json's rig.values), which relight's readers do not know: they would show the
+      // codes as sRGB photographs, wrong in brightness and contrast. Refused, not copied.
+      if (s.model->encoding() == ValueEncoding::kLinear) {
+        return MakeError(ErrorCode::kUnsupported, path,
+                         "this PCA model holds HDR reflectance codes (info.json rig.values: a value "
+                         "curve over radiance / lamp radiance), not relight's 8-bit sRGB planes; "
+                         "relight and OpenLIME would decode them as photographs (rig view writes "
+                         "a relighting page of it)");
+      }
       s.as_stored = true;
       return s;
     }

@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <thread>
 
 #include "process/model/samples.h"
 
@@ -36,12 +38,36 @@ double HdrCodeCurve::Decode(double code) const {
   return floor * std::expm1(code / 255.0 * std::log1p(max / floor));
 }
 
+namespace {
+
+double Quantile(std::vector<float> v, double q) {
+  if (v.empty()) return 1.0;
+  const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())));
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+  return static_cast<double>(v[k]);
+}
+
+HdrCodeCurve CurveOfSample(const std::vector<float>& all, const std::vector<float>& positive,
+                           const HdrCurveOptions& o) {
+  HdrCodeCurve c;
+  c.curve = o.curve;
+  c.gamma = o.gamma;
+  c.max = Quantile(all, o.high);
+  if (!(c.max > 0)) c.max = 1;
+  c.floor = std::max(Quantile(positive, o.low), c.max * std::exp2(-o.max_stops));
+  c.floor = std::min(c.floor, c.max);
+  return c;
+}
+
+constexpr size_t kCurveSampleChannels = size_t{1} << 20;
+
+}  // namespace
+
 HdrCodeCurve FitHdrCurve(const std::vector<cv::Mat>& rho_bgr, const HdrCurveOptions& o) {
   std::vector<float> all, positive;
   size_t total = 0;
   for (const auto& m : rho_bgr) total += m.total() * 3;
-  const size_t want = size_t{1} << 20;
-  const size_t stride = std::max<size_t>(1, total / want);
+  const size_t stride = std::max<size_t>(1, total / kCurveSampleChannels);
   size_t i = 0;
   for (const auto& m : rho_bgr) {
     const float* p = m.ptr<float>();
@@ -53,20 +79,34 @@ HdrCodeCurve FitHdrCurve(const std::vector<cv::Mat>& rho_bgr, const HdrCurveOpti
       if (v > 0) positive.push_back(v);
     }
   }
-  auto quantile = [](std::vector<float>& v, double q) {
-    if (v.empty()) return 1.0;
-    const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())));
-    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-    return static_cast<double>(v[k]);
-  };
-  HdrCodeCurve c;
-  c.curve = o.curve;
-  c.gamma = o.gamma;
-  c.max = quantile(all, o.high);
-  if (!(c.max > 0)) c.max = 1;
-  c.floor = std::max(quantile(positive, o.low), c.max * std::exp2(-o.max_stops));
-  c.floor = std::min(c.floor, c.max);
-  return c;
+  return CurveOfSample(all, positive, o);
+}
+
+HdrCurveSampler::HdrCurveSampler(size_t maps, size_t pixels, const std::array<double, 3>& lamp)
+    : pixels_(pixels), stride_(std::max<size_t>(1, maps * pixels * 3 / kCurveSampleChannels)), lamp_(lamp) {}
+
+void HdrCurveSampler::Add(size_t map, size_t first_pixel, const cv::Mat& rows) {
+  const float* p = rows.ptr<float>();
+  const size_t base = (map * pixels_ + first_pixel) * 3, n = rows.total() * 3;
+  // The first index of this run that is a multiple of the stride.
+  for (size_t j = (stride_ - base % stride_) % stride_; j < n; j += stride_) {
+    const float rho = static_cast<float>(p[j] / lamp_[2 - j % 3]);
+    const float v = std::isfinite(rho) ? std::max(rho, 0.0f) : 0.0f;
+    all_.push_back(v);
+    if (v > 0) positive_.push_back(v);
+  }
+}
+
+HdrCodeCurve HdrCurveSampler::Curve(const HdrCurveOptions& o) const {
+  return CurveOfSample(all_, positive_, o);
+}
+
+HdrCodeCurve FitHdrCurveOfRadiance(const std::vector<cv::Mat>& radiance,
+                                   const std::array<double, 3>& lamp, const HdrCurveOptions& o) {
+  if (radiance.empty()) return CurveOfSample({}, {}, o);
+  HdrCurveSampler sampler(radiance.size(), radiance[0].total(), lamp);
+  for (size_t l = 0; l < radiance.size(); ++l) sampler.Add(l, 0, radiance[l]);
+  return sampler.Curve(o);
 }
 
 std::vector<cv::Mat> ReflectanceOf(const std::vector<cv::Mat>& radiance_bgr,
@@ -80,9 +120,37 @@ std::vector<cv::Mat> ReflectanceOf(const std::vector<cv::Mat>& radiance_bgr,
   return out;
 }
 
+namespace {
+
+// The smallest positive finite float whose code is at least `code` (+inf: none).
+float FirstOfCode(const HdrCodeCurve& curve, double lamp, int code) {
+  uint32_t lo = 1, hi = 0x7f800000u;  // [lo, hi): candidates; hi is +inf
+  while (lo < hi) {
+    const uint32_t mid = lo + (hi - lo) / 2;
+    float f;
+    std::memcpy(&f, &mid, sizeof f);
+    if (HdrCode(f, lamp, curve) >= code) {
+      hi = mid;
+    } else {
+      lo = mid + 1;
+    }
+  }
+  float f;
+  std::memcpy(&f, &lo, sizeof f);
+  return f;
+}
+
+}  // namespace
+
+HdrCodeTable::HdrCodeTable(const HdrCodeCurve& curve, double lamp) : curve_(curve), lamp_(lamp) {
+  for (int k = 1; k <= 254; ++k) first_[k - 1] = FirstOfCode(curve, lamp, k);
+  top_ = FirstOfCode(curve, lamp, 255);
+}
+
 LightSamples SamplesFromMaps(const std::vector<cv::Mat>& radiance_bgr,
                              const std::vector<Vec3>& directions,
-                             const std::array<double, 3>& lamp, const HdrCodeCurve& curve) {
+                             const std::array<double, 3>& lamp, const HdrCodeCurve& curve,
+                             int threads) {
   LightSamples s;
   if (radiance_bgr.empty()) return s;
   s.width = radiance_bgr[0].cols;
@@ -91,21 +159,26 @@ LightSamples SamplesFromMaps(const std::vector<cv::Mat>& radiance_bgr,
   const size_t lights = radiance_bgr.size();
   const size_t pixels = s.pixels();
   s.values.resize(pixels * lights * 3);
-  for (size_t l = 0; l < lights; ++l) {
+  const std::array<HdrCodeTable, 3> code = {HdrCodeTable(curve, lamp[0]), HdrCodeTable(curve, lamp[1]),
+                                            HdrCodeTable(curve, lamp[2])};
+  threads = std::max(1, std::min<int>(threads, static_cast<int>(lights)));
+  auto body = [&](size_t first) {
+  for (size_t l = first; l < lights; l += static_cast<size_t>(threads)) {
     const cv::Mat& m = radiance_bgr[l];
     for (int y = 0; y < s.height; ++y) {
       const float* row = m.ptr<float>(y);
       for (int x = 0; x < s.width; ++x) {
         const size_t p = static_cast<size_t>(y) * s.width + x;
-        for (int c = 0; c < 3; ++c) {
-          const double rho = row[x * 3 + (2 - c)] / lamp[c];
-          const double code = std::round(curve.Encode(rho));
-          s.values[(p * lights + l) * 3 + c] =
-              static_cast<uint8_t>(std::isfinite(code) ? std::clamp(code, 0.0, 255.0) : 0.0);
-        }
+        for (int c = 0; c < 3; ++c)
+          s.values[(p * lights + l) * 3 + c] = code[c](row[x * 3 + (2 - c)]);
       }
     }
   }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(body, static_cast<size_t>(t));
+  body(0);
+  for (auto& t : pool) t.join();
   return s;
 }
 

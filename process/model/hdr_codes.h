@@ -4,7 +4,10 @@
 // back to linear reflectance (and renders give radiance, as the harmonic families' do).
 #pragma once
 
+#include <algorithm>
 #include <array>
+#include <cmath>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -49,14 +52,65 @@ struct HdrCurveOptions {
 };
 HdrCodeCurve FitHdrCurve(const std::vector<cv::Mat>& rho_bgr, const HdrCurveOptions& options);
 
+// The same choice made from radiance maps read in any order of row bands (a session's maps as
+// they are held, never all in floats at once): the sample-channels are FitHdrCurve's own
+// (every stride-th of the maps laid end to end, 2^20 in all), ρ = radiance ÷ lamp as
+// SamplesFromMaps divides it, and the quantiles do not depend on the order the bands come in,
+// so any band order gives the curve of the whole maps.
+class HdrCurveSampler {
+ public:
+  HdrCurveSampler(size_t maps, size_t pixels, const std::array<double, 3>& lamp_radiance_rgb);
+  // Rows of map `map` (CV_32FC3 BGR radiance, continuous) whose first pixel is `first_pixel`
+  // of the map. Not thread-safe.
+  void Add(size_t map, size_t first_pixel, const cv::Mat& radiance_bgr_rows);
+  HdrCodeCurve Curve(const HdrCurveOptions& options) const;
+
+ private:
+  size_t pixels_, stride_;
+  std::array<double, 3> lamp_;
+  std::vector<float> all_, positive_;
+};
+// HdrCurveSampler over whole maps (all one size): the curve of their reflectance.
+HdrCodeCurve FitHdrCurveOfRadiance(const std::vector<cv::Mat>& radiance_bgr,
+                                   const std::array<double, 3>& lamp_radiance_rgb,
+                                   const HdrCurveOptions& options);
+
+// One sample's code: radiance ÷ the lamp's radiance in that channel, encoded and rounded
+// (negative and NaN as 0, beyond max as 255) — what SamplesFromMaps stores.
+inline uint8_t HdrCode(float radiance, double lamp, const HdrCodeCurve& curve) {
+  const double code = std::round(curve.Encode(radiance / lamp));
+  return static_cast<uint8_t>(std::isfinite(code) ? std::clamp(code, 0.0, 255.0) : 0.0);
+}
+
 // Multi-light samples of radiance maps (CV_32FC3 BGR, one per lamp, all one size): ρ =
 // radiance ÷ lamp radiance (R, G, B) per channel, encoded and rounded to codes (negative and
 // NaN ρ as 0, beyond max as 255). The usable mask is left empty: with the thresholds of
 // HdrMaskThresholds the censored samples are exactly the clamped codes.
+// `threads` share the maps (the codes do not depend on it).
 LightSamples SamplesFromMaps(const std::vector<cv::Mat>& radiance_bgr,
                              const std::vector<Vec3>& directions,
                              const std::array<double, 3>& lamp_radiance_rgb,
-                             const HdrCodeCurve& curve);
+                             const HdrCodeCurve& curve, int threads = 1);
+// HdrCode of one channel by table: the smallest radiance of each code 1..255 found once (a
+// binary search over the floats' bit patterns, the code rising with the radiance), then each
+// value's code is its place among them — the same code as HdrCode for every float, without a
+// power or logarithm per sample. Beyond the code-255 threshold, and for NaN and infinities,
+// HdrCode itself.
+class HdrCodeTable {
+ public:
+  HdrCodeTable(const HdrCodeCurve& curve, double lamp);
+  uint8_t operator()(float radiance) const {
+    if (!(radiance > 0) || !(radiance < top_)) return HdrCode(radiance, lamp_, curve_);
+    return static_cast<uint8_t>(std::upper_bound(first_.begin(), first_.end(), radiance) - first_.begin());
+  }
+
+ private:
+  HdrCodeCurve curve_;
+  double lamp_;
+  std::array<float, 254> first_;  // first_[k - 1]: the smallest radiance of code k, k = 1..254
+  float top_;                     // the smallest of code 255
+};
+
 // Reflectance maps (radiance ÷ lamp radiance), CV_32FC3 BGR.
 std::vector<cv::Mat> ReflectanceOf(const std::vector<cv::Mat>& radiance_bgr,
                                    const std::array<double, 3>& lamp_radiance_rgb);

@@ -3,6 +3,8 @@
 // samples from maps, and a PCA model of an HDR scene (a matte surface with a highlight 200×
 // brighter) written, read back and decoded to linear reflectance and radiance.
 #include <cmath>
+#include <cstring>
+#include <random>
 #include <filesystem>
 #include <fstream>
 
@@ -228,6 +230,44 @@ TEST(HdrPca, BadValuesBlockIsRefusedNamingTheFile) {
   ASSERT_TRUE(plain.ok()) << plain.error().ToString();
   EXPECT_EQ((*plain)->encoding(), ValueEncoding::kSrgb);
   fs::remove_all(fs::path(dir).parent_path());
+}
+
+}  // namespace
+}  // namespace rig
+
+namespace rig {
+namespace {
+
+// The table's code is HdrCode's for every float tried: each curve, random bit patterns (any
+// sign, size, NaN, infinity), and the floats either side of every code's first radiance.
+TEST(HdrCodes, TheCodeTableGivesHdrCodesOwnCodeForEveryFloat) {
+  std::mt19937 rng(7);
+  for (HdrCurve kind : {HdrCurve::kPower, HdrCurve::kLog, HdrCurve::kSrgb}) {
+    HdrCodeCurve c;
+    c.curve = kind;
+    c.gamma = 1.25;
+    c.max = 3.7;
+    c.floor = 0.002;
+    const double lamp = 1.7;
+    const HdrCodeTable table(c, lamp);
+    int mismatches = 0, distinct = 0;
+    uint8_t last = 0;
+    for (int i = 0; i < 2000000; ++i) {
+      const uint32_t bits = rng();
+      float f;
+      std::memcpy(&f, &bits, sizeof f);
+      if (table(f) != HdrCode(f, lamp, c)) ++mismatches;
+    }
+    for (float f = 1e-6f; f < 20.f; f = std::nextafter(f * 1.0001f, 1e30f)) {
+      for (float g : {std::nextafter(f, 0.f), f, std::nextafter(f, 1e30f)})
+        if (table(g) != HdrCode(g, lamp, c)) ++mismatches;
+      const uint8_t code = table(f);
+      if (code != last) ++distinct;
+      last = code;
+    }
+    EXPECT_EQ(mismatches, 0) << HdrCurveName(kind);
+    EXPECT_GT(distinct, 200) << HdrCurveName(kind);  // the sweep crosses the codes
+  }
 }
 
 }  // namespace

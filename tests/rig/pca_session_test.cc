@@ -100,6 +100,15 @@ TEST_F(PcaSession, TheModelFromTheFilesEqualsTheCapturesFromMemoryByteForByte) {
   EXPECT_GE(files, 2);
 }
 
+TEST_F(PcaSession, ExportToRelightRefusesTheHdrCodesSayingWhy) {
+  const std::string out = *dir_ + "/relight";
+  auto run = RunRig("export " + *session_ + " --format relight --out " + out);
+  EXPECT_NE(run.status, 0) << run.output;
+  EXPECT_NE(run.output.find("HDR reflectance codes"), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("pca"), std::string::npos) << run.output;  // names the model
+  EXPECT_FALSE(fs::exists(fs::path(out) / "info.json"));
+}
+
 TEST_F(PcaSession, ViewWritesThePage) {
   const std::string out = *dir_ + "/view";
   auto run = RunRig("view " + *session_ + " --out " + out);

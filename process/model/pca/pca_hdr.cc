@@ -18,11 +18,7 @@ using Clock = std::chrono::steady_clock;
 
 HdrCodeCurve CurveOf(const PcaHdrCurveCandidate& c, const std::vector<cv::Mat>& radiance,
                      const std::array<double, 3>& lamp, double high) {
-  HdrCurveOptions o;
-  o.curve = c.curve;
-  o.gamma = c.gamma;
-  o.high = high;
-  return FitHdrCurve(ReflectanceOf(radiance, lamp), o);
+  return FitHdrCurveOfRadiance(radiance, lamp, PcaHdrCurveOptions(c, high));
 }
 
 PcaOptions BaseOptions(const PcaHdrChoiceOptions& o) {
@@ -93,15 +89,30 @@ Status ScoreCurve(const PcaHdrCurveCandidate& cc, const std::vector<cv::Mat>& ra
 
 }  // namespace
 
+HdrCurveOptions PcaHdrCurveOptions(const PcaHdrCurveCandidate& c, double high) {
+  HdrCurveOptions o;
+  o.curve = c.curve;
+  o.gamma = c.gamma;
+  o.high = high;
+  return o;
+}
+
+PcaOptions PcaHdrModelOptions(const PcaHdrChoiceOptions& o, int components, int resolution,
+                              int quality) {
+  PcaOptions po = BaseOptions(o);
+  po.components = components;
+  po.grid_resolution = resolution;
+  po.jpeg_quality = quality;
+  return po;
+}
+
 std::string PcaHdrCurveCandidate::Name() const {
   return curve == HdrCurve::kPower ? fmt::format("power{:g}", gamma) : HdrCurveName(curve);
 }
 
-Result<PcaHdrFit> FitPcaHdrAuto(const std::vector<cv::Mat>& radiance,
-                                const std::vector<Vec3>& directions,
-                                const std::array<double, 3>& lamp,
-                                const LightFrameConfig& light_frame,
-                                const PcaHdrChoiceOptions& o) {
+Result<PcaHdrFit> ChoosePcaHdr(const std::vector<cv::Mat>& radiance,
+                               const std::vector<Vec3>& directions,
+                               const std::array<double, 3>& lamp, const PcaHdrChoiceOptions& o) {
   const auto t0 = Clock::now();
   if (radiance.size() != directions.size() || radiance.size() < 8) {
     return MakeError(ErrorCode::kInvalidInput, "pca", "{} maps for {} directions: 8 or more needed",
@@ -148,16 +159,9 @@ Result<PcaHdrFit> FitPcaHdrAuto(const std::vector<cv::Mat>& radiance,
   }
   const PcaHdrCandidate& ch = fit.candidates[fit.chosen];
   const auto& best = fit.candidates[fit.best];
-  PcaHdrCurveCandidate cc;
   for (const auto& c : o.curves)
-    if (c.Name() == ch.curve) cc = c;
-  const HdrCodeCurve curve = CurveOf(cc, radiance, lamp, o.high);
-  PcaOptions po = BaseOptions(o);
-  po.components = ch.components;
-  po.grid_resolution = ch.resolution;
-  po.jpeg_quality = ch.quality;
-  RIG_ASSIGN_OR_RETURN(fit.model, FitPca(SamplesFromMaps(radiance, directions, lamp, curve), po));
-  fit.model.set_hdr({curve, lamp, light_frame});
+    if (c.Name() == ch.curve) fit.curve = c;
+  fit.options = PcaHdrModelOptions(o, ch.components, ch.resolution, ch.quality);
   fit.reason = fmt::format(
       "{} curve, {} components on a {}x{} grid at JPEG q{}: {:.4f} relative error at the {} lamps "
       "held out, {:.2f} B/px — the smallest of {} candidates within {:.0f}% of the best under "
@@ -172,6 +176,20 @@ Result<PcaHdrFit> FitPcaHdrAuto(const std::vector<cv::Mat>& radiance,
                              radiance[0].cols, radiance[0].rows) + fit.reason;
     Log("process")->warn("pca of radiance maps: {}", fit.reason);
   }
+  fit.time_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  return fit;
+}
+
+Result<PcaHdrFit> FitPcaHdrAuto(const std::vector<cv::Mat>& radiance,
+                                const std::vector<Vec3>& directions,
+                                const std::array<double, 3>& lamp,
+                                const LightFrameConfig& light_frame,
+                                const PcaHdrChoiceOptions& o) {
+  const auto t0 = Clock::now();
+  RIG_ASSIGN_OR_RETURN(PcaHdrFit fit, ChoosePcaHdr(radiance, directions, lamp, o));
+  const HdrCodeCurve curve = CurveOf(fit.curve, radiance, lamp, o.high);
+  RIG_ASSIGN_OR_RETURN(fit.model, FitPca(SamplesFromMaps(radiance, directions, lamp, curve), fit.options));
+  fit.model.set_hdr({curve, lamp, light_frame});
   fit.time_s = std::chrono::duration<double>(Clock::now() - t0).count();
   Log("process")->info("pca of radiance maps: {} ({:.2f} s)", fit.reason, fit.time_s);
   return fit;

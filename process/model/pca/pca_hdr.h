@@ -48,7 +48,9 @@ struct PcaHdrCandidate {
 };
 
 struct PcaHdrFit {
-  PcaModel model;
+  PcaModel model;                  // empty after ChoosePcaHdr
+  PcaHdrCurveCandidate curve;      // the chosen candidate's curve ...
+  PcaOptions options;              // ... and its model's options (components, grid, quality)
   std::vector<PcaHdrCandidate> candidates;
   int chosen = -1, best = -1;
   std::string reason;  // one sentence
@@ -61,6 +63,18 @@ Result<PcaHdrFit> FitPcaHdrAuto(const std::vector<cv::Mat>& radiance,
                                 const std::array<double, 3>& lamp_radiance_rgb,
                                 const LightFrameConfig& light_frame,
                                 const PcaHdrChoiceOptions& options);
+
+// The choice alone (fit.model left empty): the candidates, the chosen one's curve and options.
+// FitPcaHdrAuto is this followed by FitPca on every map with the chosen curve's codes.
+Result<PcaHdrFit> ChoosePcaHdr(const std::vector<cv::Mat>& radiance,
+                               const std::vector<Vec3>& directions,
+                               const std::array<double, 3>& lamp_radiance_rgb,
+                               const PcaHdrChoiceOptions& options);
+// The options FitPcaHdrAuto's final fit takes for a candidate of `options`.
+PcaOptions PcaHdrModelOptions(const PcaHdrChoiceOptions& options, int components, int resolution,
+                              int quality);
+// The curve options of a candidate curve.
+HdrCurveOptions PcaHdrCurveOptions(const PcaHdrCurveCandidate& curve, double high);
 
 // Markdown table of the candidates, the choice marked.
 std::string PcaHdrChoiceMarkdown(const PcaHdrFit& fit);

@@ -183,11 +183,12 @@ Result<PcaChoiceInput> GatherChoiceInput(const std::vector<LpEntry>& entries,
   return in;
 }
 
-// The planes' ranges from the sampled pixels' coefficients. A pixel's coefficients depend on
-// its place in its block (to the last bit), not on the other pixels in it: each block holding
-// sampled pixels is solved with them in their places and neutral samples (mid-grey, never
-// masked) elsewhere.
-std::vector<PlaneQuantisation> SampledQuantisation(
+}  // namespace
+
+// A pixel's coefficients depend on its place in its block (to the last bit), not on the other
+// pixels in it: each block holding sampled pixels is solved with them in their places and
+// neutral samples (mid-grey, never masked) elsewhere.
+std::vector<PlaneQuantisation> PcaSampledQuantisation(
     const PcaCoefficientSolver& solver, const std::vector<std::pair<size_t, size_t>>& blocks,
     const std::vector<size_t>& subset, const LightSamples& sampled, int k, double quantile,
     int threads) {
@@ -223,19 +224,7 @@ std::vector<PlaneQuantisation> SampledQuantisation(
   return PcaQuantisation(coefficients, quantile);
 }
 
-// What pass 2 shares.
-struct PlanePass {
-  const std::vector<LpEntry>& entries;
-  const PcaStreamOptions& stream;
-  const std::vector<Vec3>& directions;
-  const PcaOptions& po;
-  const PcaCoefficientSolver& solver;
-  const std::vector<std::pair<size_t, size_t>>& blocks;
-  const std::vector<PlaneQuantisation>& quant;
-  int k;
-  size_t pixels;
-  std::string context;
-};
+namespace {
 
 // The pixels of pass 2 between reading and writing: samples of pixels [pend_start, ...) not
 // yet solved; plane bytes of pixels [out_start, solved_end) not yet written (per file, three
@@ -248,7 +237,7 @@ struct PlaneRows {
 };
 
 // Solves the blocks that end by pixel `band_end`, quantised into the rows' plane bytes.
-void SolveBlocksUpTo(const PlanePass& pp, size_t band_end, int threads, PlaneRows* pr) {
+void SolveBlocksUpTo(const PcaPlanePass& pp, size_t band_end, int threads, PlaneRows* pr) {
   const size_t dim = pp.directions.size() * 3;
   size_t block_end = pr->block_next;
   while (block_end < pp.blocks.size() &&
@@ -279,20 +268,18 @@ void SolveBlocksUpTo(const PlanePass& pp, size_t band_end, int threads, PlaneRow
   pr->block_next = block_end;
 }
 
-// Pass 2: every pixel's coefficients in FitPcaCoefficients' blocks, quantised, written row
-// by row into ceil(k / 3) plane files (three planes each, R, G, B) in `out_folder`.
-Status WritePlanesStreaming(const PlanePass& pp, const std::string& out_folder, PcaStreamFit* out) {
-  const size_t lights = pp.entries.size(), dim = lights * 3;
-  const int band_rows = std::max(1, pp.stream.band_rows);
-  const int threads = std::max(1, pp.stream.threads);
+}  // namespace
+
+Status WritePcaPlanes(const PcaPlanePass& pp, const PcaBandSource& source,
+                      const std::string& out_folder, PcaStreamFit* out) {
+  const size_t dim = pp.directions.size() * 3;
+  const int band_rows = std::max(1, pp.band_rows);
+  const int threads = std::max(1, pp.threads);
+  const int w = pp.width, h = pp.height;
+  const size_t pixels = static_cast<size_t>(w) * h;
   std::error_code ec;
   fs::create_directories(out_folder, ec);
   if (ec) return MakeError(ErrorCode::kIo, out_folder, "cannot create the folder: {}", ec.message());
-  RIG_ASSIGN_OR_RETURN(PcaBandReader reader, PcaBandReader::Open(pp.entries, pp.stream));
-  const int w = reader.width(), h = reader.height();
-  if (static_cast<size_t>(w) * h != pp.pixels) {
-    return MakeError(ErrorCode::kInvalidInput, pp.context, "the images changed between the passes");
-  }
   const int files = (pp.k + 2) / 3;
   std::vector<std::unique_ptr<JpegWriter>> writers;
   for (int j = 0; j < files; ++j) {
@@ -311,15 +298,14 @@ Status WritePlanesStreaming(const PlanePass& pp, const std::string& out_folder, 
   band.directions = pp.directions;
   for (int y0 = 0; y0 < h; y0 += band_rows) {
     const int rows = std::min(band_rows, h - y0);
-    RIG_TRY(reader.Read(rows));
     // The band as LightSamples, masked.
     band.height = rows;
     const size_t n = band.pixels();
     band.values.resize(n * dim);
-    OnThreads(threads, [&](int t) {
-      const size_t lo = n * t / threads, hi = n * (t + 1) / threads;
-      for (size_t p = lo; p < hi; ++p) CopyPixel(reader, lights, p, band.values.data() + p * dim);
-    });
+    RIG_TRY(source(y0, rows, &band.values));
+    if (band.values.size() != n * dim) {
+      return MakeError(ErrorCode::kInternal, pp.context, "a band of {} values for {} pixels", band.values.size(), n);
+    }
     out->masked_samples += MaskLdrSamples(&band, pp.po.thresholds);
     for (size_t p = 0; p < n; ++p) {
       const uint8_t* u = band.usable.data() + p * dim;
@@ -338,9 +324,9 @@ Status WritePlanesStreaming(const PlanePass& pp, const std::string& out_folder, 
       pr.out_start += static_cast<size_t>(full_rows) * w;
     }
   }
-  if (pr.out_start != pp.pixels || pr.block_next != pp.blocks.size()) {
+  if (pr.out_start != pixels || pr.block_next != pp.blocks.size()) {
     return MakeError(ErrorCode::kInternal, pp.context, "{} of {} pixels written", pr.out_start,
-                     pp.pixels);
+                     pixels);
   }
   for (auto& wr : writers) RIG_TRY(wr->Finish());
   for (int t = 0; t < threads; ++t) {
@@ -348,13 +334,11 @@ Status WritePlanesStreaming(const PlanePass& pp, const std::string& out_folder, 
     out->stats.refitted_pixels += pr.refitted[t];
   }
   out->masked_fraction = static_cast<double>(out->masked_samples) /
-                         static_cast<double>(std::max<size_t>(1, pp.pixels * dim));
+                         static_cast<double>(std::max<size_t>(1, pixels * dim));
   out->pixels_with_masked =
-      static_cast<double>(with_masked) / static_cast<double>(std::max<size_t>(1, pp.pixels));
+      static_cast<double>(with_masked) / static_cast<double>(std::max<size_t>(1, pixels));
   return Ok();
 }
-
-}  // namespace
 
 Result<PcaStreamFit> FitPcaStreaming(const std::vector<LpEntry>& entries,
                                      const PcaChoiceOptions& options,
@@ -395,14 +379,29 @@ Result<PcaStreamFit> FitPcaStreaming(const std::vector<LpEntry>& entries,
   const int k = basis.components;
   const PcaCoefficientSolver solver(basis, directions, po);
   const auto blocks = PcaCoefficientBlocks(pixels, po.threads);
-  const std::vector<PlaneQuantisation> quant = SampledQuantisation(
+  const std::vector<PlaneQuantisation> quant = PcaSampledQuantisation(
       solver, blocks, subset, in.sampled, k, po.quantile, std::max(1, stream.threads));
   in.sampled = LightSamples();
   out.choice_s = PcaSeconds(t1);
 
   const auto t2 = Clock::now();
-  const PlanePass pp{entries, stream, directions, po, solver, blocks, quant, k, pixels, context};
-  RIG_TRY(WritePlanesStreaming(pp, out_folder, &out));
+  RIG_ASSIGN_OR_RETURN(PcaBandReader reader, PcaBandReader::Open(entries, stream));
+  if (static_cast<size_t>(reader.width()) * reader.height() != pixels) {
+    return MakeError(ErrorCode::kInvalidInput, context, "the images changed between the passes");
+  }
+  const size_t lights = entries.size(), dim = lights * 3;
+  const int threads = std::max(1, stream.threads);
+  const PcaPlanePass pp{directions, po, solver, blocks, quant, k, out.width, out.height,
+                        stream.band_rows, threads, context};
+  RIG_TRY(WritePcaPlanes(pp, [&](int, int rows, std::vector<uint8_t>* values) -> Status {
+    RIG_TRY(reader.Read(rows));
+    const size_t n = static_cast<size_t>(rows) * reader.width();
+    OnThreads(threads, [&](int t) {
+      const size_t lo = n * t / threads, hi = n * (t + 1) / threads;
+      for (size_t p = lo; p < hi; ++p) CopyPixel(reader, lights, p, values->data() + p * dim);
+    });
+    return Ok();
+  }, out_folder, &out));
   RIG_TRY(WritePcaInfo(out_folder, out.width, out.height, basis, quant, directions,
                        po.jpeg_quality));
   out.write_s = PcaSeconds(t2);

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -52,5 +53,32 @@ Result<PcaStreamFit> FitPcaStreaming(const std::vector<LpEntry>& entries,
                                      const PcaChoiceOptions& options,
                                      const std::string& out_folder,
                                      const PcaStreamOptions& stream = {});
+
+// The pieces of pass 2 for another source of bands (a session's radiance maps as codes).
+// Rows [y0, y0 + rows) of every light's samples, laid out as LightSamples::values.
+using PcaBandSource = std::function<Status(int y0, int rows, std::vector<uint8_t>* values)>;
+struct PcaPlanePass {
+  const std::vector<Vec3>& directions;
+  const PcaOptions& po;  // the model's: quality, thresholds
+  const PcaCoefficientSolver& solver;
+  const std::vector<std::pair<size_t, size_t>>& blocks;  // PcaCoefficientBlocks(pixels, po.threads)
+  const std::vector<PlaneQuantisation>& quant;
+  int k = 0;
+  int width = 0, height = 0;
+  int band_rows = 16, threads = 2;
+  std::string context;  // for error messages
+};
+// Every pixel's coefficients in FitPcaCoefficients' blocks, quantised, written row by row into
+// the ceil(k / 3) plane files of `out_folder` (created); *out's sample counts added to. The
+// bytes are those of FitPcaCoefficients + PcaModel::Save on the same samples.
+Status WritePcaPlanes(const PcaPlanePass& pass, const PcaBandSource& source,
+                      const std::string& out_folder, PcaStreamFit* out);
+// The planes' ranges from the sampled pixels' coefficients (`sampled`: the `subset` pixels'
+// samples in that order), each solved in the block FitPcaCoefficients solves it in: the ranges
+// FitPcaCoefficients takes.
+std::vector<PlaneQuantisation> PcaSampledQuantisation(
+    const PcaCoefficientSolver& solver, const std::vector<std::pair<size_t, size_t>>& blocks,
+    const std::vector<size_t>& subset, const LightSamples& sampled, int k, double quantile,
+    int threads);
 
 }  // namespace rig

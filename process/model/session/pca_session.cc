@@ -1,0 +1,141 @@
+// The session's PCA model from bands of its radiance maps.
+#include "process/model/session/pca_session.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstring>
+#include <exception>
+
+#include <fmt/format.h>
+
+#include "config/log.h"
+
+namespace rig {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+// Rows [y0, y1) of every map; OpenEXR's exceptions (a file source) as an error naming the rows.
+Status ReadRows(MapBands& maps, int y0, int y1, std::vector<cv::Mat>* bgr) {
+  std::vector<cv::Mat> valid;
+  try {
+    return maps.Read(y0, y1, bgr, &valid);
+  } catch (const std::exception& e) {
+    return MakeError(ErrorCode::kIo, fmt::format("radiance maps rows {}-{}", y0, y1 - 1),
+                     "cannot read: {}", e.what());
+  }
+}
+
+// Pass 2: the curve's sample-channels of every map and the radiance of the components' sampled
+// pixels (subset.size() × lights × BGR floats, in subset order).
+Status GatherSample(MapBands& maps, const std::vector<size_t>& subset, int band_rows,
+                    HdrCurveSampler* sampler, std::vector<float>* sampled) {
+  const int w = maps.width(), h = maps.height();
+  const size_t lights = maps.count();
+  sampled->assign(subset.size() * lights * 3, 0.0f);
+  size_t next = 0;
+  std::vector<cv::Mat> bgr;
+  for (int y0 = 0; y0 < h; y0 += band_rows) {
+    const int y1 = std::min(h, y0 + band_rows);
+    RIG_TRY(ReadRows(maps, y0, y1, &bgr));
+    const size_t first = static_cast<size_t>(y0) * w, end = static_cast<size_t>(y1) * w;
+    for (size_t l = 0; l < lights; ++l) sampler->Add(l, first, bgr[l]);
+    for (; next < subset.size() && subset[next] < end; ++next)
+      for (size_t l = 0; l < lights; ++l)
+        std::memcpy(sampled->data() + (next * lights + l) * 3,
+                    bgr[l].ptr<float>() + (subset[next] - first) * 3, 3 * sizeof(float));
+  }
+  return Ok();
+}
+
+// The sampled pixels' codes, as SamplesFromMaps would make them (R, G, B from B, G, R).
+LightSamples SampledCodes(const std::vector<float>& sampled, size_t count,
+                          const std::vector<Vec3>& directions, const std::array<double, 3>& lamp,
+                          const HdrCodeCurve& curve) {
+  LightSamples s;
+  s.width = static_cast<int>(count);
+  s.height = 1;
+  s.directions = directions;
+  s.values.resize(sampled.size());
+  for (size_t i = 0; i < sampled.size(); i += 3)
+    for (int c = 0; c < 3; ++c) s.values[i + c] = HdrCode(sampled[i + (2 - c)], lamp[c], curve);
+  return s;
+}
+
+}  // namespace
+
+cv::Rect PcaHdrChoiceRegion(int width, int height) {
+  const int w = std::min(width, kPcaHdrChoiceSide), h = std::min(height, kPcaHdrChoiceSide);
+  return {(width - w) / 2, (height - h) / 2, w, h};
+}
+
+Result<PcaSessionFit> FitPcaHdrFromBands(MapBands& maps, const std::vector<Vec3>& directions,
+                                         const std::array<double, 3>& lamp,
+                                         const LightFrameConfig& light_frame,
+                                         const PcaHdrChoiceOptions& o,
+                                         const std::string& out_folder, int band_rows) {
+  const auto t0 = Clock::now();
+  band_rows = std::max(1, band_rows);
+  if (maps.count() != directions.size()) {
+    return MakeError(ErrorCode::kInvalidInput, "pca", "{} maps for {} directions", maps.count(),
+                     directions.size());
+  }
+  PcaSessionFit out;
+  out.width = maps.width();
+  out.height = maps.height();
+  const size_t pixels = static_cast<size_t>(out.width) * out.height;
+  // 1. The choice, on the central region's maps.
+  out.choice_region = PcaHdrChoiceRegion(out.width, out.height);
+  const cv::Rect& r = out.choice_region;
+  {
+    std::vector<cv::Mat> rows, region;
+    RIG_TRY(ReadRows(maps, r.y, r.y + r.height, &rows));
+    for (auto& m : rows) region.push_back(m(cv::Rect(r.x, 0, r.width, r.height)).clone());
+    rows.clear();
+    RIG_ASSIGN_OR_RETURN(out.choice, ChoosePcaHdr(region, directions, lamp, o));
+  }
+  out.choice_s = Since(t0);
+  // 2. The curve from every map, the components from the sampled pixels.
+  const auto t1 = Clock::now();
+  const PcaOptions& po = out.choice.options;
+  const std::vector<size_t> subset = SamplePixels(pixels, po.basis_pixels, po.seed);
+  HdrCurveSampler sampler(maps.count(), pixels, lamp);
+  std::vector<float> sampled_radiance;
+  RIG_TRY(GatherSample(maps, subset, band_rows, &sampler, &sampled_radiance));
+  out.curve = sampler.Curve(PcaHdrCurveOptions(out.choice.curve, o.high));
+  const LightSamples sampled = SampledCodes(sampled_radiance, subset.size(), directions, lamp, out.curve);
+  sampled_radiance = {};
+  RIG_ASSIGN_OR_RETURN(PcaComponents comps,
+                       ComputePcaComponentsOfSample(sampled, subset, po.components, po));
+  const int k = std::min<int>(po.components, static_cast<int>(comps.vectors.cols()));
+  RIG_ASSIGN_OR_RETURN(PcaBasis basis, FitPcaBasis(comps, k, po.grid_resolution, po.smoothness));
+  out.components = basis.components;
+  const PcaCoefficientSolver solver(basis, directions, po);
+  const auto blocks = PcaCoefficientBlocks(pixels, po.threads);
+  const int threads = std::max(1, o.threads);
+  const std::vector<PlaneQuantisation> quant =
+      PcaSampledQuantisation(solver, blocks, subset, sampled, basis.components, po.quantile, threads);
+  out.gather_s = Since(t1);
+  // 3. Every pixel's codes, solved and written.
+  const auto t2 = Clock::now();
+  const PcaPlanePass pass{directions, po, solver, blocks, quant, basis.components,
+                          out.width,  out.height, band_rows, threads, "pca of radiance maps"};
+  std::vector<cv::Mat> bgr;
+  RIG_TRY(WritePcaPlanes(pass, [&](int y0, int rows, std::vector<uint8_t>* values) -> Status {
+    RIG_TRY(ReadRows(maps, y0, y0 + rows, &bgr));
+    *values = SamplesFromMaps(bgr, directions, lamp, out.curve, threads).values;
+    return Ok();
+  }, out_folder, &out.planes));
+  RIG_TRY(WritePcaInfo(out_folder, out.width, out.height, basis, quant, directions, po.jpeg_quality,
+                       "", PcaHdrValues{out.curve, lamp, light_frame}));
+  out.write_s = Since(t2);
+  out.time_s = Since(t0);
+  Log("process")->info("pca of radiance maps: {} (choice {:.2f} s on {}x{}, sample {:.2f} s, "
+                       "planes {:.2f} s)", out.choice.reason, out.choice_s, r.width, r.height,
+                       out.gather_s, out.write_s);
+  return out;
+}
+
+}  // namespace rig

@@ -1,0 +1,151 @@
+// The session's PCA model fitted band by band (FitPcaHdrFromBands): from radiance maps held in
+// memory as they arrived (MapStore) and from the same maps' EXR files the folders are equal
+// byte for byte, and both equal FitPcaHdrAuto on the whole maps followed by PcaModel::Save;
+// the curve's sample read in bands in any order is the whole maps' curve.
+#include "process/model/session/pca_session.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "process/io/exr_io.h"
+#include "process/model/light_direction.h"
+#include "process/model/session/map_store.h"
+
+namespace rig {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr int kWidth = 97, kHeight = 61;
+
+// A glossy, textured scene with a cast shadow, lit from direction l (BGR radiance; a few
+// samples negative or not finite, as merged maps can hold).
+cv::Mat Render(const Vec3& l, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> noise(0.f, 0.01f);
+  cv::Mat m(kHeight, kWidth, CV_32FC3);
+  for (int y = 0; y < kHeight; ++y) {
+    for (int x = 0; x < kWidth; ++x) {
+      const double u = (x + 0.5) / kWidth - 0.5, v = (y + 0.5) / kHeight - 0.5;
+      Vec3 n = {0.5 * std::sin(9 * u), 0.4 * std::cos(7 * v), 1};
+      const double nn = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+      for (auto& q : n) q /= nn;
+      const double ndl = std::max(0.0, n[0] * l[0] + n[1] * l[1] + n[2] * l[2]);
+      const double spec = std::pow(std::max(0.0, 2 * ndl * n[2] - l[2]), 30);
+      const bool shadow = x > kWidth / 2 && x < kWidth / 2 + 40 * l[0] && y > kHeight / 3;
+      auto* px = m.ptr<cv::Vec3f>(y) + x;
+      for (int c = 0; c < 3; ++c) {
+        const double albedo = (0.2 + 0.5 * ((x / 7 + y / 5) % 2)) * (1.0 - 0.2 * c);
+        const double lit = (shadow ? 0.05 : 1.0) * (albedo * ndl + 4.0 * spec) + 0.01;
+        (*px)[c] = static_cast<float>(30.0 * lit * (1 + noise(rng)));
+      }
+    }
+  }
+  m.at<cv::Vec3f>(3, 4)[1] = -0.5f;
+  m.at<cv::Vec3f>(5, 6)[0] = std::numeric_limits<float>::quiet_NaN();
+  return m;
+}
+
+std::string Bytes(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+class PcaSessionFitTest : public testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("rig_pca_session_fit_" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    for (int v = 0; v <= 30; v += 10)
+      for (int h = 0; h <= 90; h += 15) {
+        directions_.push_back(LightDirection(h, v));
+        maps_.push_back(Render(directions_.back(), static_cast<unsigned>(maps_.size())));
+        paths_.push_back((dir_ / ("m" + std::to_string(maps_.size()) + ".exr")).string());
+        ASSERT_TRUE(WriteRgbExr(paths_.back(), maps_.back(), {}, ExrPixelType::kFloat).ok());
+      }
+    options_.components = {6, 9};
+    options_.qualities = {90};
+    options_.resolutions = {8};
+    options_.max_bytes_per_pixel = 1e9;
+    options_.scratch = (dir_ / "scratch").string();
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  void ExpectSameFolder(const fs::path& a, const fs::path& b) {
+    int files = 0;
+    for (const auto& e : fs::directory_iterator(a)) {
+      EXPECT_EQ(Bytes(e.path()), Bytes(b / e.path().filename())) << e.path() << " vs " << b;
+      ++files;
+    }
+    int other = 0;
+    for ([[maybe_unused]] const auto& e : fs::directory_iterator(b)) ++other;
+    EXPECT_EQ(files, other);
+    EXPECT_GE(files, 3);  // info.json and the planes of 6 or 9 components
+  }
+
+  fs::path dir_;
+  std::vector<Vec3> directions_;
+  std::vector<cv::Mat> maps_;
+  std::vector<std::string> paths_;
+  PcaHdrChoiceOptions options_;
+  const std::array<double, 3> lamp_ = {2.0, 1.5, 1.0};
+};
+
+TEST_F(PcaSessionFitTest, FromMemoryFromFilesAndWholeMapsTheSameBytes) {
+  MapStore store(ExrPixelType::kFloat, paths_.size(), MapStore::DefaultMaxBytes());
+  std::vector<std::string> keys;
+  // The maps arrive out of order, as a resumed session's may.
+  for (size_t i = paths_.size(); i-- > 0;) {
+    keys.insert(keys.begin(), std::to_string(i));
+    ASSERT_TRUE(store.Add(keys.front(), maps_[i], cv::Mat()).ok());
+  }
+  auto mem = store.Bands(keys);
+  ASSERT_TRUE(mem.ok());
+  auto from_memory = FitPcaHdrFromBands(**mem, directions_, lamp_, {}, options_,
+                                        (dir_ / "memory").string(), 7);
+  ASSERT_TRUE(from_memory.ok()) << from_memory.error().ToString();
+  auto files = OpenMapFiles(paths_);
+  ASSERT_TRUE(files.ok());
+  auto from_files = FitPcaHdrFromBands(**files, directions_, lamp_, {}, options_,
+                                       (dir_ / "files").string(), 32);
+  ASSERT_TRUE(from_files.ok()) << from_files.error().ToString();
+  ExpectSameFolder(dir_ / "memory", dir_ / "files");
+
+  auto whole = FitPcaHdrAuto(maps_, directions_, lamp_, {}, options_);
+  ASSERT_TRUE(whole.ok()) << whole.error().ToString();
+  ASSERT_TRUE(whole->model.Save((dir_ / "whole").string()).ok());
+  ExpectSameFolder(dir_ / "memory", dir_ / "whole");
+  EXPECT_EQ(from_memory->choice_region, cv::Rect(0, 0, kWidth, kHeight));
+  EXPECT_EQ(from_memory->choice.chosen, whole->chosen);
+  EXPECT_EQ(from_memory->curve.max, whole->model.hdr()->curve.max);
+}
+
+TEST_F(PcaSessionFitTest, TheCurveSampledInBandsInAnyOrderIsTheWholeMapsCurve) {
+  HdrCurveOptions o;
+  o.curve = HdrCurve::kLog;
+  const HdrCodeCurve whole = FitHdrCurveOfRadiance(maps_, lamp_, o);
+  HdrCurveSampler sampler(maps_.size(), static_cast<size_t>(kWidth) * kHeight, lamp_);
+  std::vector<int> starts;
+  for (int y = 0; y < kHeight; y += 5) starts.push_back(y);
+  std::reverse(starts.begin(), starts.end());
+  for (int y0 : starts)
+    for (size_t l = 0; l < maps_.size(); ++l)
+      sampler.Add(l, static_cast<size_t>(y0) * kWidth,
+                  maps_[l].rowRange(y0, std::min(kHeight, y0 + 5)));
+  const HdrCodeCurve banded = sampler.Curve(o);
+  EXPECT_EQ(banded.max, whole.max);
+  EXPECT_EQ(banded.floor, whole.floor);
+  // And it is the reflectance's curve (radiance ÷ lamp), as FitHdrCurve takes it.
+  const HdrCodeCurve rho = FitHdrCurve(ReflectanceOf(maps_, lamp_), o);
+  EXPECT_NEAR(banded.max, rho.max, 1e-6 * rho.max);
+  EXPECT_GT(banded.max, 0);
+}
+
+}  // namespace
+}  // namespace rig
