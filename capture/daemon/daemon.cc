@@ -294,6 +294,12 @@ Status CaptureDaemon::OpenDevices(RunState& run) {
   st = WithRetries(run, mc.retries, mc.retry_backoff_s, [&] { return motor_.Open(); }, nullptr);
   if (!st.ok()) return Fault(run, st.error(), motor_.Describe());
   run.motor_open = true;
+  // The grid against the controller's own travel, read at open: refused before anything moves.
+  st = motor_.CheckReach(run.poses);
+  if (!st.ok()) {
+    Status f = Fault(run, st.error(), motor_.Describe());
+    return Error{ErrorCode::kInvalidInput, f.error().message, f.error().context};
+  }
   st = lamp_.Open();
   if (!st.ok()) return Fault(run, st.error(), lamp_.Describe());
   run.lamp_open = true;
