@@ -13,6 +13,7 @@
 
 #include "capture/daemon/daemon.h"
 #include "capture/devices/grbl_motor.h"
+#include "capture/plan/pose.h"
 #include "capture/session/session_store.h"
 #include "config/config.h"
 #include "rig/backends.h"
@@ -188,6 +189,39 @@ TEST(GrblFirmware, AGridOutsideTheFirmwaresTravelIsRefusedBeforeAnythingMoves) {
   EXPECT_EQ(emu->homings(), 0);
   EXPECT_EQ(summary.frames_captured, 0);
   std::filesystem::remove_all(dir);
+}
+
+// config/grbl-dome.toml's grid on the firmware docs/rig-setup.md sets up for it ($130=340,
+// $131=90), and on one whose X travel is left at 300: accepted, and refused before a move.
+TEST(GrblFirmware, TheFullAzimuthExampleFitsTheFirmwareItsGuideSetsUpAndNoShorterOne) {
+  ConfigResult cr = LoadConfig(testing::SourceDir() + "/config/grbl-dome.toml");
+  ASSERT_TRUE(cr.ok());
+  const std::vector<Pose> grid = PlanGrid(cr.config.grid);
+  ASSERT_EQ(grid.size(), 60u);
+  for (double x_travel : {340.0, 300.0}) {
+    GrblEmulatorOptions o = Arm();
+    o.settings[130] = x_travel;
+    o.settings[131] = 90;
+    o.settings[20] = 1;
+    auto emu = StartGrbl(o);
+    ASSERT_TRUE(emu);
+    MotorConfig mc = cr.config.motor;
+    const MotorConfig fast = GrblConfigFor(emu->path());
+    mc.port = fast.port;
+    mc.reply_timeout_s = fast.reply_timeout_s;
+    mc.grbl.banner_timeout_s = fast.grbl.banner_timeout_s;
+    GrblMotor motor(mc);
+    ASSERT_TRUE(motor.Open().ok());
+    Status st = motor.CheckReach(grid);
+    if (x_travel == 340) {
+      EXPECT_TRUE(st.ok()) << st.error().ToString();
+    } else {
+      ASSERT_FALSE(st.ok());
+      EXPECT_THAT(st.error().ToString(), HasSubstr("$130=300"));
+      EXPECT_THAT(st.error().ToString(), HasSubstr("of 60 poses"));
+    }
+    EXPECT_EQ(emu->moves(), 0);
+  }
 }
 
 // A pose the rig's own limits allow (h -5) but GRBL's soft limits do not: refused with both
