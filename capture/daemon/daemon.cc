@@ -76,7 +76,7 @@ bool IsProcessed(const CameraConfig& camera, const std::string& ext) {
 
 std::string CaptureSummary::ToString() const {
   double accounted =
-      motion_s + settle_s + lamp_s + camera_s + storage_s + queue_wait_s + processing_tail_s;
+      open_s + motion_s + settle_s + lamp_s + camera_s + storage_s + queue_wait_s + processing_tail_s;
   // The shutter is part of the camera's time only when the body waited it out; a simulated
   // camera renders at once, and its frames' exposures add up to more than its time.
   std::string shutter =
@@ -88,10 +88,10 @@ std::string CaptureSummary::ToString() const {
   std::string s = fmt::format(
       "poses {}  frames {} (captured now {}, verified from before {}, redone {})  retries {}  "
       "faults {}\n"
-      "time {:.2f} s: motion {:.2f} s, settle {:.2f} s, lamp {:.2f} s, camera {:.2f} s{}, "
+      "time {:.2f} s: opening the devices {:.2f} s, motion {:.2f} s, settle {:.2f} s, lamp {:.2f} s, camera {:.2f} s{}, "
       "storage {:.2f} s, waiting on processing {:.2f} s, own overhead {:.2f} s",
       poses, frames, frames_captured, frames_verified, frames_redone, retries, faults, total_s,
-      motion_s, settle_s, lamp_s, camera_s, shutter, storage_s, queue_wait_s,
+      open_s, motion_s, settle_s, lamp_s, camera_s, shutter, storage_s, queue_wait_s,
       std::max(0.0, total_s - accounted));
   s += fmt::format(
       "\nprocessing: {} radiance maps, {} failed; decode {:.2f} s, response {:.2f} s, merge "
@@ -288,9 +288,11 @@ Status CaptureDaemon::MoveAsideUnjournaled(RunState& run, const std::set<fs::pat
 Status CaptureDaemon::OpenDevices(RunState& run) {
   const CameraConfig& cc = session_.config().camera;
   const MotorConfig& mc = session_.config().motor;
+  auto t_open = Clock::now();
   Status st = WithRetries(
       run, cc.retries, cc.retry_backoff_s, [&] { return camera_.Open(); }, nullptr);
   if (!st.ok()) return Fault(run, st.error(), camera_.Describe());
+  // GRBL's Open() waits out the board's reset and banner (up to grbl.banner_timeout_s).
   st = WithRetries(run, mc.retries, mc.retry_backoff_s, [&] { return motor_.Open(); }, nullptr);
   if (!st.ok()) return Fault(run, st.error(), motor_.Describe());
   run.motor_open = true;
@@ -301,6 +303,7 @@ Status CaptureDaemon::OpenDevices(RunState& run) {
     return Error{ErrorCode::kInvalidInput, f.error().message, f.error().context};
   }
   st = lamp_.Open();
+  run.sum.open_s += Since(t_open);
   if (!st.ok()) return Fault(run, st.error(), lamp_.Describe());
   run.lamp_open = true;
 

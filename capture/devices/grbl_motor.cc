@@ -693,11 +693,29 @@ Status GrblMotor::WaitIdleByPolling(const Pose& pose, const std::array<double, 3
   }
 }
 
+Seconds GrblMotor::BrakeWait() const {
+  // A feed hold decelerates at the block's acceleration from its speed: v/a seconds over
+  // v^2/2a units. Per axis, v is the feed (capped by $11n) and a is $12n; the slowest axis
+  // bounds any block's stop. Waited out with a margin before the reset, since a reset
+  // before Hold:0 raises ALARM:3 (mc_reset()).
+  auto get = [&](int n) { auto it = settings_.find(n); return it == settings_.end() ? NAN : it->second; };
+  const double upd = config_.grbl.units_per_degree;
+  double t = 0;
+  for (int index : {h_index_, v_index_}) {
+    double v = config_.speed_deg_per_s * upd;
+    if (const double rate = get(110 + index); std::isfinite(rate) && rate > 0) v = std::min(v, rate / 60);
+    double a = get(120 + index);
+    if (!std::isfinite(a) || a <= 0) a = config_.accel_deg_per_s2 * upd;
+    t = std::max(t, v / a);
+  }
+  return Seconds(1.5 * t + config_.reply_timeout_s);
+}
+
 Status GrblMotor::StopMotion(bool unlock) {
   if (!port_) return Fail(ErrorCode::kFault, "not open");
   // Feed hold decelerates under control; then a soft reset drops the rest of the planner.
   RIG_TRY(SendRealtime('!'));
-  auto deadline = After(Seconds(config_.reply_timeout_s));
+  auto deadline = After(BrakeWait());
   while (Clock::now() < deadline) {
     auto s = QueryStatus(false);
     if (!s.ok()) {

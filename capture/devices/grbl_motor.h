@@ -103,6 +103,8 @@ class GrblMotor final : public Motor {
   // A move that did not complete: feed hold, soft reset, fault.
   Error AbortMove(const Pose& pose, const Error& why);
   Status StopMotion(bool unlock);
+  // How long a feed hold may take to stop, from the feed and $11n/$12n, with a margin.
+  Seconds BrakeWait() const;
   Status AfterReconnect(bool was_reset);
   Error Fail(ErrorCode code, const std::string& message) const;
   Error AlarmError(int code, const std::string& during) const;

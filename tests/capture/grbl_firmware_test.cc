@@ -13,6 +13,7 @@
 
 #include "capture/daemon/daemon.h"
 #include "capture/devices/grbl_motor.h"
+#include "capture/devices/signals.h"
 #include "capture/plan/pose.h"
 #include "capture/session/session_store.h"
 #include "config/config.h"
@@ -247,6 +248,39 @@ TEST(GrblFirmware, AJogInsideTheRigsLimitsButOutsideTheFirmwaresIsRefusedWithBot
   EXPECT_EQ(emu->moves(), moves);
   EXPECT_EQ(emu->State(), "Idle");
   ASSERT_TRUE(motor.MoveTo({0, 0}).ok());  // still answering
+}
+
+// A slow controller: 10 deg/s braking at 5 deg/s^2 takes 2 s, four times the reply timeout.
+// Ctrl-C waits the hold out (v/a from $110 and $120, plus a margin) before its reset, so
+// GRBL raises no ALARM:3 and the position is kept.
+TEST(GrblFirmware, CtrlCWaitsForTheBrakeTheControllersSpeedAndAccelerationNeed) {
+  GrblEmulatorOptions o = Arm();
+  o.time_scale = 1;
+  o.homing_enabled = false;
+  o.settings[120] = 5;
+  auto emu = StartGrbl(o);
+  ASSERT_TRUE(emu);
+  MotorConfig c = GrblConfigFor(emu->path());
+  c.speed_deg_per_s = 10;
+  c.move_timeout_s = 60;
+  c.reply_timeout_s = 0.5;
+  GrblMotor motor(c);
+  ASSERT_TRUE(motor.Open().ok());
+  ClearStopForTesting();
+  std::thread stopper([] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(2500));  // at full speed
+    RequestStop(SIGINT);
+  });
+  Status st = motor.MoveTo({90, 0});
+  stopper.join();
+  ClearStopForTesting();
+  ASSERT_FALSE(st.ok());
+  EXPECT_EQ(st.error().code, ErrorCode::kInterrupted) << st.error().ToString();
+  EXPECT_THAT(st.error().message, HasSubstr("the move was stopped"));
+  EXPECT_EQ(motor.fault(), "") << motor.fault();
+  EXPECT_EQ(emu->State(), "Idle");
+  EXPECT_GT(emu->WorkPosition()[0], 10);  // it got under way, then braked to a stop
+  EXPECT_LT(emu->WorkPosition()[0], 60);
 }
 
 // ---- A link lost mid-move ---------------------------------------------------------------
