@@ -754,12 +754,22 @@ Status CaptureDaemon::Fault(RunState& run, const Error& e, const std::string& de
   auto log = Log("session");
   ++run.sum.faults;
   Park(run);
-  // "pose P: <device>: message" — the device's own context ("sim camera", "/dev/ttyACM0")
-  // only when its description does not already name it.
+  // "pose P: <device>: message", each context once: of the inner context, the parts that
+  // name this pose again or that the device's description already holds ("sim camera",
+  // "/dev/ttyACM0") are left out.
   Error inner = e;
-  if (!inner.context.empty() && device.find(inner.context) != std::string::npos)
-    inner.context.clear();
-  Error err = inner.Within(device).Within("pose " + run.current_pose);
+  const std::string pose = "pose " + run.current_pose;
+  std::string kept;
+  for (size_t start = 0; start <= inner.context.size();) {
+    const size_t end = inner.context.find(": ", start);
+    const std::string part = inner.context.substr(start, end == std::string::npos ? end : end - start);
+    if (!part.empty() && part != pose && device.find(part) == std::string::npos)
+      kept += (kept.empty() ? "" : ": ") + part;
+    if (end == std::string::npos) break;
+    start = end + 2;
+  }
+  inner.context = kept;
+  Error err = inner.Within(device).Within(pose);
   log->error("fault: {}", err.ToString());
   Status st = session_.journal().Append({{"event", "fault"}, {"device", device},
                                          {"pose", run.current_pose}, {"error", err.ToString()}});

@@ -345,6 +345,10 @@ TEST(GrblFirmware, ALinkLostMidMoveToAResetControllerSaysHomingIsNeededAndTheRes
     EXPECT_EQ(st.error().code, ErrorCode::kFault);
     EXPECT_THAT(st.error().ToString(), HasSubstr("reset when the link came back"));
     EXPECT_THAT(st.error().ToString(), HasSubstr("home it"));
+    // Each context once: "pose P: grbl on PORT: message", not the pose and port again.
+    const std::string text = st.error().ToString();
+    EXPECT_EQ(text.find("pose h"), text.rfind("pose h")) << text;
+    EXPECT_EQ(text.find(link), text.rfind(link)) << text;
     stored = summary.frames_captured;
     EXPECT_GT(stored, 0);
   }
