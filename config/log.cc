@@ -65,7 +65,11 @@ std::shared_ptr<spdlog::logger> Log(const std::string& module) {
   if (auto l = spdlog::get(module)) return l;
   auto l = std::make_shared<spdlog::logger>(module, r.sinks.begin(), r.sinks.end());
   l->set_level(r.level);
-  l->flush_on(spdlog::level::warn);
+  // With a log file, every line is flushed (AddLogFile); before one, warnings and errors.
+  bool has_file = false;
+  for (const auto& sink : r.sinks)
+    has_file = has_file || std::dynamic_pointer_cast<spdlog::sinks::basic_file_sink_mt>(sink) != nullptr;
+  l->flush_on(has_file ? spdlog::level::trace : spdlog::level::warn);
   spdlog::register_logger(l);
   return l;
 }
@@ -107,7 +111,9 @@ bool AddLogFile(const std::string& path) {
   r.sinks.push_back(file);
   spdlog::apply_all([&](std::shared_ptr<spdlog::logger> l) {
     l->sinks().push_back(file);
-    l->flush_on(spdlog::level::info);
+    // Every line reaches the file as it is logged: log.txt is a live view (`tail -f`), and
+    // a crash loses no line.
+    l->flush_on(spdlog::level::trace);
   });
   return true;
 }

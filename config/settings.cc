@@ -87,14 +87,42 @@ const std::vector<std::string>& DeviceSettingKeys() {
   return keys;
 }
 
+Result<std::pair<Config, std::vector<SettingChange>>> ApplyOverrides(
+    const Config& config, const std::vector<std::string>& assignments) {
+  std::pair<Config, std::vector<SettingChange>> out{config, {}};
+  for (const auto& a : assignments) {
+    SettingChange c;
+    RIG_ASSIGN_OR_RETURN(out.first, ApplyOverride(out.first, a, &c));
+    out.second.push_back(c);
+  }
+  return out;
+}
+
+namespace {
+
+// `key` set to `value` of type `kind` in the resolved configuration, validated as a file is.
+Result<Config> Assign(const Config& config, const std::string& key, const std::string& value, Kind kind,
+                      SettingChange* change);
+
+bool SplitAssignment(const std::string& assignment, std::string* key, std::string* value) {
+  const auto eq = assignment.find('=');
+  if (eq == std::string::npos || eq == 0) return false;
+  *key = assignment.substr(0, eq);
+  *value = assignment.substr(eq + 1);
+  return true;
+}
+
+Error NotAnAssignment(const std::string& assignment) {
+  return MakeError(ErrorCode::kInvalidInput, "--set " + assignment,
+                   "expected KEY=VALUE, e.g. camera.port=usb:001,004");
+}
+
+}  // namespace
+
 Result<Config> ApplySetting(const Config& config, const std::string& assignment,
                             SettingChange* change) {
-  const auto eq = assignment.find('=');
-  if (eq == std::string::npos || eq == 0)
-    return MakeError(ErrorCode::kInvalidInput, "--set " + assignment,
-                     "expected KEY=VALUE, e.g. camera.port=usb:001,004");
-  const std::string key = assignment.substr(0, eq);
-  const std::string value = assignment.substr(eq + 1);
+  std::string key, value;
+  if (!SplitAssignment(assignment, &key, &value)) return NotAnAssignment(assignment);
   const DeviceKey* dk = nullptr;
   for (const auto& d : kDeviceKeys)
     if (key == d.key) dk = &d;
@@ -106,6 +134,37 @@ Result<Config> ApplySetting(const Config& config, const std::string& assignment,
                      "grid, bracket, camera exposure settings and the scene never do): {}",
                      allowed);
   }
+  return Assign(config, key, value, dk->kind, change);
+}
+
+Result<Config> ApplyOverride(const Config& config, const std::string& assignment, SettingChange* change) {
+  std::string key, value;
+  if (!SplitAssignment(assignment, &key, &value)) return NotAnAssignment(assignment);
+  for (const auto& d : kDeviceKeys)
+    if (key == d.key) return Assign(config, key, value, d.kind, change);
+  // Any other key of the resolved configuration, with the type it has there.
+  const std::string text = ToToml(config);
+  const toml::table root = toml::parse(std::string_view(text), std::string_view("resolved"));
+  const toml::node_view<const toml::node> node = root.at_path(key);
+  if (node.is_table())
+    return MakeError(ErrorCode::kInvalidInput, "--set " + key, "a table, not a setting");
+  // A key the resolved text leaves out (an empty camera.iso) goes in as text; the schema
+  // then refuses an unknown key or a wrong type, as it does in a file.
+  Kind kind;
+  if (!node || node.is_string()) kind = Kind::kString;
+  else if (node.is_integer()) kind = Kind::kInt;
+  else if (node.is_floating_point()) kind = Kind::kFloat;
+  else if (node.is_boolean()) kind = Kind::kBool;
+  else
+    return MakeError(ErrorCode::kInvalidInput, "--set " + key,
+                     "a list; set it in the configuration file instead");
+  return Assign(config, key, value, kind, change);
+}
+
+namespace {
+
+Result<Config> Assign(const Config& config, const std::string& key, const std::string& value, Kind kind,
+                      SettingChange* change) {
   const std::string text = ToToml(config);
   toml::table root = toml::parse(std::string_view(text), std::string_view("resolved"));
   // The table holding the key (created if the resolved text leaves it out, e.g. an empty port).
@@ -121,7 +180,7 @@ Result<Config> ApplySetting(const Config& config, const std::string& assignment,
   const std::string before = ValueText(root, key);
   char* end = nullptr;
   errno = 0;
-  switch (dk->kind) {
+  switch (kind) {
     case Kind::kString:
       t->insert_or_assign(rest, value);
       break;
@@ -159,5 +218,7 @@ Result<Config> ApplySetting(const Config& config, const std::string& assignment,
   }
   return r.config;
 }
+
+}  // namespace
 
 }  // namespace rig

@@ -4,6 +4,7 @@
 
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "config/config.h"
@@ -30,5 +31,12 @@ struct SettingChange {
 // unless the key is a device setting and the value has its type and passes validation.
 Result<Config> ApplySetting(const Config& config, const std::string& assignment,
                             SettingChange* change);
+
+// For a session not yet created (`rig capture --set`): any key of the resolved configuration
+// (camera.iso, grid.h_step_deg, ...) with the type it has there, validated as a file is.
+Result<Config> ApplyOverride(const Config& config, const std::string& assignment, SettingChange* change);
+// Every assignment in turn (ApplyOverride); the result and the changes, old and new values.
+Result<std::pair<Config, std::vector<SettingChange>>> ApplyOverrides(const Config& config,
+                                                                     const std::vector<std::string>& assignments);
 
 }  // namespace rig

@@ -39,6 +39,7 @@ class WorldTrackingMotor final : public Motor {
   Status Stop() override { return inner_->Stop(); }
   Status Reconnect() override { return Track([&] { return inner_->Reconnect(); }); }
   Status Unlock() override { return inner_->Unlock(); }
+  Status CheckReach(const std::vector<Pose>& poses) override { return inner_->CheckReach(poses); }
 
  private:
   template <typename F>

@@ -261,7 +261,81 @@ GrblEmulator::GrblEmulator(GrblEmulatorOptions options)
     : PtyEmulator(options.time_scale), options_(std::move(options)) {
   settings_ = DefaultSettings();
   settings_[22] = options_.homing_enabled ? 1 : 0;
+  // $23 as the guide sets it: home each switched axis towards the end its switch is at.
+  settings_[23] = options_.switches_at_negative_end & options_.switch_axes;
   for (auto [k, v] : options_.settings) settings_[k] = v;
+  if (options_.g54)
+    g54_ = *options_.g54;
+  else if (Setting(22) != 0)
+    g54_ = HomedPosition();
+}
+
+std::array<double, 3> GrblEmulator::WorkOffset() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return g54_;
+}
+
+// The two-axis build homes X and Y in one cycle; stock GRBL homes Z first (config.h).
+std::array<double, 3> GrblEmulator::HomedPosition() const {
+  // limits.c, without HOMING_FORCE_SET_ORIGIN: machine space is all negative. An axis homed
+  // towards its negative end ($23 bit set) is at max_travel + pulloff (max_travel stored
+  // negative: -$13n + $27), one homed towards its positive end at -$27.
+  std::array<double, 3> p = pos_;
+  const int cycle = options_.stock_homing_cycle ? 0b100 : 0b011;
+  const int dir = static_cast<int>(Setting(23));
+  for (int i = 0; i < 3; ++i) {
+    if (!(cycle & (1 << i))) continue;
+    p[i] = (dir & (1 << i)) ? -Setting(130 + i) + Setting(27) : -Setting(27);
+  }
+  return p;
+}
+
+std::pair<double, int> GrblEmulator::HomingPlan() const {
+  double seek = Setting(25) / 60, feed = Setting(24) / 60, pulloff = Setting(27);
+  double debounce = Setting(26) / 1000;
+  const int cycle = options_.stock_homing_cycle ? 0b100 : 0b011;
+  const int dir = static_cast<int>(Setting(23));
+  double search = 0;  // limits_go_home(): 1.5 x the largest max travel of the cycle's axes
+  for (int i = 0; i < 3; ++i)
+    if (cycle & (1 << i)) search = std::max(search, 1.5 * Setting(130 + i));
+  for (int i = 0; i < 3; ++i) {
+    if (!(cycle & (1 << i))) continue;
+    const bool has_switch = options_.switch_axes & (1 << i);
+    const bool towards_negative = dir & (1 << i);
+    const bool switch_negative = options_.switches_at_negative_end & (1 << i);
+    // No switch on this axis, or searching away from it: nothing trips within the search.
+    if (!has_switch || towards_negative != switch_negative) return {search / seek, 9};
+  }
+  if (options_.homing_fail_alarm == 9) return {search / seek, 9};
+  std::array<double, 3> homed = HomedPosition();
+  double travel = 0;
+  for (int i = 0; i < 3; ++i) travel = std::max(travel, std::fabs(pos_[i] - homed[i]));
+  if (options_.homing_fail_alarm == 8) return {(travel + pulloff) / seek + debounce + pulloff / seek, 8};
+  return {(travel + pulloff) / seek + 2 * pulloff * 1.5 / feed + 2 * debounce + pulloff / seek,
+          options_.homing_fail_alarm};
+}
+
+bool GrblEmulator::OutsideTravel(const std::array<double, 3>& machine) const {
+  // system_check_travel_limits(): max_travel is stored negative, the space is -$13n .. 0.
+  for (int i = 0; i < 3; ++i)
+    if (machine[i] > 0 || machine[i] < -Setting(130 + i)) return true;
+  return false;
+}
+
+// G10 L2 P1 (offset given) and G10 L20 P1 (the current position becomes the given work
+// coordinate): the G54 offset, stored in EEPROM like GRBL's coordinate systems.
+std::string GrblEmulator::SetWorkOffset(const std::map<char, double>& words, bool relative_to_position) {
+  auto p = words.find('P');
+  if (p == words.end() || p->second != 1) return "error:29";  // only G54 (P1) is emulated
+  const char axes[3] = {'X', 'Y', 'Z'};
+  bool any = false;
+  for (int a = 0; a < 3; ++a) {
+    auto w = words.find(axes[a]);
+    if (w == words.end()) continue;
+    any = true;
+    g54_[a] = relative_to_position ? pos_[a] - w->second : w->second;
+  }
+  return any ? "ok" : "error:26";
 }
 
 GrblEmulator::~GrblEmulator() { Stop(); }
@@ -281,6 +355,11 @@ void GrblEmulator::SetOptions(const GrblEmulatorOptions& options) {
 std::array<double, 3> GrblEmulator::Position() const {
   std::lock_guard<std::mutex> lock(mu_);
   return pos_;
+}
+
+std::array<double, 3> GrblEmulator::WorkPosition() const {
+  std::lock_guard<std::mutex> lock(mu_);
+  return {pos_[0] - g54_[0], pos_[1] - g54_[1], pos_[2] - g54_[2]};
 }
 
 std::string GrblEmulator::State() const {
@@ -375,7 +454,7 @@ void GrblEmulator::StatusReport() {
   if (!planner_.empty() && planner_.front().started && !holding_)
     feed = BlockSpeed(planner_.front(), Now()) * 60;
   std::string s = fmt::format("<{}|MPos:{:.3f},{:.3f},{:.3f}|FS:{:.0f},0", state, pos_[0], pos_[1], pos_[2], feed);
-  if (report_count_++ % 10 == 0) s += "|WCO:0.000,0.000,0.000";
+  if (report_count_++ % 10 == 0) s += fmt::format("|WCO:{:.3f},{:.3f},{:.3f}", g54_[0], g54_[1], g54_[2]);
   s += ">";
   SendLine(s);
 }
@@ -446,6 +525,9 @@ void GrblEmulator::OnInput(std::string_view bytes) {
   for (char ch : bytes) {
     unsigned char c = static_cast<unsigned char>(ch);
     if (c == '?') {
+      // protocol.c: a soft- or hard-limit alarm spins in a loop that serves nothing, status
+      // reports included, until a reset (the comment there says otherwise; the loop is empty).
+      if (critical_) continue;
       if (state_ == "Home")
         status_pending_ = true;  // no reports during a homing cycle
       else
@@ -529,7 +611,8 @@ std::string GrblEmulator::ExecuteSystem(const std::string& line) {
   }
   if (line == "$#") {
     for (const char* p : {"G54", "G55", "G56", "G57", "G58", "G59", "G28", "G30", "G92"})
-      SendLine(fmt::format("[{}:0.000,0.000,0.000]", p));
+      SendLine(std::string(p) == "G54" ? fmt::format("[G54:{:.3f},{:.3f},{:.3f}]", g54_[0], g54_[1], g54_[2])
+                                     : fmt::format("[{}:0.000,0.000,0.000]", p));
     SendLine("[TLO:0.000]");
     SendLine("[PRB:0.000,0.000,0.000:0]");
     return "ok";
@@ -546,20 +629,8 @@ std::string GrblEmulator::ExecuteSystem(const std::string& line) {
     if (Setting(22) == 0) return "error:5";
     state_ = "Home";
     wait_ = Wait::kHoming;
-    homing_result_alarm_ = options_.homing_fail_alarm;
-    double seek = Setting(25) / 60, feed = Setting(24) / 60, pulloff = Setting(27);
-    double debounce = Setting(26) / 1000;
-    double travel = 0;
-    for (int i = 0; i < 3; ++i) travel = std::max(travel, std::fabs(pos_[i]));
-    double max_travel = std::max({Setting(130), Setting(131), Setting(132)});
-    double duration;
-    if (homing_result_alarm_ == 9) {
-      duration = 1.5 * max_travel / seek;  // searched the whole distance, found nothing
-    } else if (homing_result_alarm_ == 8) {
-      duration = (travel + pulloff) / seek + debounce + pulloff / seek;
-    } else {
-      duration = (travel + pulloff) / seek + 2 * pulloff * 1.5 / feed + 2 * debounce + pulloff / seek;
-    }
+    auto [duration, alarm] = HomingPlan();
+    homing_result_alarm_ = alarm;
     wait_until_ = Now() + duration;
     return "";
   }
@@ -603,12 +674,12 @@ std::string GrblEmulator::ExecuteGcode(const std::string& line) {
         return "error:20";
       continue;
     }
-    if (std::string("FXYZPNST").find(letter) == std::string::npos) return "error:20";
+    if (std::string("FXYZPNSTL").find(letter) == std::string::npos) return "error:20";
     if (words.count(letter)) return "error:25";
     words[letter] = value;
   }
   int motion = -1;
-  bool dwell = false;
+  bool dwell = false, machine_coords = false, set_offset = false;
   for (int g : gcodes) {
     switch (g) {
       case 0: case 1:
@@ -616,12 +687,20 @@ std::string GrblEmulator::ExecuteGcode(const std::string& line) {
         motion = g;
         break;
       case 4: dwell = true; break;
+      case 10: set_offset = true; break;
+      case 53: machine_coords = true; break;  // this block in machine coordinates
       case 90: absolute_ = true; break;
       case 91: absolute_ = false; break;
-      case 17: case 20: case 21: case 53: case 54: case 94: break;
+      case 17: case 20: case 21: case 54: case 94: break;
       default: return "error:20";
     }
   }
+  if (set_offset) {
+    auto l = words.find('L');
+    if (l == words.end() || (l->second != 2 && l->second != 20)) return "error:20";
+    return SetWorkOffset(words, l->second == 20);
+  }
+  if (words.count('L')) return "error:20";
   if (words.count('F')) {
     if (words['F'] < 0) return "error:4";
     feed_ = words['F'];
@@ -649,7 +728,15 @@ std::string GrblEmulator::ExecuteGcode(const std::string& line) {
   std::array<double, 3> target = planned_;
   const char axes[3] = {'X', 'Y', 'Z'};
   for (int a = 0; a < 3; ++a) {
-    if (words.count(axes[a])) target[a] = absolute_ ? words[axes[a]] : planned_[a] + words[axes[a]];
+    if (!words.count(axes[a])) continue;
+    const double offset = machine_coords ? 0 : g54_[a];
+    target[a] = absolute_ || machine_coords ? words[axes[a]] + offset : planned_[a] + words[axes[a]];
+  }
+  if (Setting(20) != 0 && OutsideTravel(target)) {
+    // limits_soft_check(): a controlled stop if moving, then ALARM:2 and the critical loop.
+    // The line is never acknowledged.
+    RaiseAlarm(2);
+    return "";
   }
   Plan(target, feed_, motion_mode_ == 0, n);
   return "ok";
@@ -677,6 +764,7 @@ void GrblEmulator::Plan(const std::array<double, 3>& target, double feed_units_p
   b.a = a;
   b.stall = options_.stall_at_move == move_number;
   b.alarm = options_.alarm_at_move == move_number;
+  b.unplug = options_.disconnect_mid_move == move_number;
   b.move_number = move_number;
   planner_.push_back(b);
 }
@@ -743,7 +831,7 @@ void GrblEmulator::OnTick() {
         SendLine(kUnlockMessage);
       }
     } else {
-      pos_ = {0, 0, 0};  // machine zero at the switches (HOMING_FORCE_SET_ORIGIN)
+      pos_ = HomedPosition();
       planned_ = pos_;
       state_ = "Idle";
       ++homings_;
@@ -766,6 +854,10 @@ void GrblEmulator::OnTick() {
     while (!planner_.empty()) {
       Block& b = planner_.front();
       if (!b.started) StartBlock(b, now);
+      if (b.unplug && now - b.t_start >= b.duration / 2) {
+        b.unplug = false;  // the link goes; the controller, powered on its own, moves on
+        UnplugLocked(options_.replug_after_s, !options_.reset_on_replug);
+      }
       if (b.alarm && now - b.t_start >= b.duration / 2) {
         pos_ = BlockPosition(b, b.t_start + b.duration / 2);
         RaiseAlarm(options_.alarm_code);

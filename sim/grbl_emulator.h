@@ -96,6 +96,20 @@ struct GrblEmulatorOptions {
   double banner_delay_s = 1.5;    // real seconds from power-up / DTR reset to the banner
   bool reset_on_open = true;      // an Arduino resets when the port is opened (DTR)
   bool homing_enabled = true;     // $22: homing cycle enabled, alarm lock at power-up
+  // The firmware build (config.h). true: stock GRBL, HOMING_CYCLE_0 = Z first, then X and Y;
+  // with no Z switch $H searches Z for 1.5 x $132, ends in ALARM:9 and X, Y never move.
+  // false: the two-axis build, HOMING_CYCLE_0 = X|Y, no Z cycle (docs/rig-setup.md).
+  bool stock_homing_cycle = false;
+  // The machine: which axes have a limit switch (bit 0 X, 1 Y, 2 Z), and which of those sit
+  // at their axis's negative end (the rig's 0 deg end). An axis homes towards its negative
+  // end when its $23 bit is set, towards the positive end when clear (limits.c); homing away
+  // from the switch searches 1.5 x $13n and ends in ALARM:9.
+  int switch_axes = 0b011;
+  int switches_at_negative_end = 0b011;
+  // The G54 work offset stored in EEPROM (machine units). Absent: what the guide's
+  // `G10 L20 P1 X0 Y0` right after homing leaves (the homed machine position), or 0 with
+  // homing disabled (work = machine, 0 at power-up).
+  std::optional<std::array<double, 3>> g54;
   // Settings written over the defaults ($100.. steps/unit, $110.. max rate units/min,
   // $120.. acceleration units/s^2, $24/$25 homing feed/seek, $27 pull-off, $130.. travel).
   std::map<int, double> settings;
@@ -108,6 +122,7 @@ struct GrblEmulatorOptions {
   int alarm_at_move = 0;          // half way through this move: ALARM:`alarm_code`, motion stops
   int alarm_code = 1;             // 1 and 2 are critical: "[MSG:Reset to continue]"
   int stall_at_move = 0;          // this move stops half way and never reaches Idle
+  int disconnect_mid_move = 0;    // unplugged half way through this move; motion goes on
   int homing_fail_alarm = 0;      // 0: homing works; 8 or 9: $H fails with that alarm
   int disconnect_at_move = 0;     // unplugged when this motion line arrives
   double replug_after_s = 0.5;    // real seconds until it is back
@@ -115,9 +130,12 @@ struct GrblEmulatorOptions {
 };
 
 // GRBL 1.1h as seen from its serial port: banner, line protocol with ok/error:N, status
-// reports, planner with trapezoidal motion, G4 dwell, $H homing with limit switches,
-// alarm lock, feed hold and resume, soft reset, $$ settings. Not emulated: arcs, jogging,
-// overrides, probing, spindle, coolant, check mode, soft limits, startup blocks.
+// reports, planner with trapezoidal motion, G4 dwell, $H homing with limit switches (the
+// cycles of the build, direction by $23, machine space negative after homing as without
+// HOMING_FORCE_SET_ORIGIN), the G54 work offset (G10 L2/L20 P1, $#, WCO), soft limits ($20:
+// ALARM:2, then silent, not even '?', until a reset), alarm lock, feed hold and resume, soft
+// reset, $$ settings. Not emulated: arcs, jogging, overrides, probing, spindle, coolant, check
+// mode, G92, G55-G59, startup blocks, HOMING_FORCE_SET_ORIGIN.
 class GrblEmulator final : public PtyEmulator {
  public:
   explicit GrblEmulator(GrblEmulatorOptions options = {});
@@ -125,6 +143,8 @@ class GrblEmulator final : public PtyEmulator {
 
   // Machine position in units (X, Y, Z), now.
   std::array<double, 3> Position() const;
+  // Work position (machine position - G54), what the client's G-code addresses.
+  std::array<double, 3> WorkPosition() const;
   std::string State() const;  // "Idle", "Run", "Hold:0", "Home", "Alarm", ...
   int moves() const;          // motion lines accepted
   int homings() const;        // successful homing cycles
@@ -132,6 +152,8 @@ class GrblEmulator final : public PtyEmulator {
   int lines() const;          // lines received
   // Emulated duration of every completed motion block, in order (emulated seconds).
   std::vector<double> motion_times_s() const;
+  // The G54 work offset (machine units).
+  std::array<double, 3> WorkOffset() const;
   // Changes faults while running (thread-safe).
   void SetOptions(const GrblEmulatorOptions& options);
 
@@ -142,7 +164,7 @@ class GrblEmulator final : public PtyEmulator {
     double t_start = 0, duration = 0;  // emulated seconds
     double t_accel = 0, v_peak = 0;
     bool started = false;
-    bool stall = false, alarm = false;
+    bool stall = false, alarm = false, unplug = false;
     int move_number = 0;
   };
 
@@ -164,6 +186,13 @@ class GrblEmulator final : public PtyEmulator {
   void Plan(const std::array<double, 3>& target, double feed_units_per_min, bool rapid, int move_number);
   void StatusReport();
   void RaiseAlarm(int code);
+  void FinishHoming();
+  // Seconds a $H takes and the alarm it ends in (0: homed), by the build, $23 and switches.
+  std::pair<double, int> HomingPlan() const;
+  std::array<double, 3> HomedPosition() const;
+  // The soft-limit check of system.c (machine space -$13n .. 0), for a machine target.
+  bool OutsideTravel(const std::array<double, 3>& machine) const;
+  std::string SetWorkOffset(const std::map<char, double>& words, bool relative_to_position);
   double Setting(int n) const;
   bool Moving() const;
 
@@ -175,6 +204,7 @@ class GrblEmulator final : public PtyEmulator {
   double boot_done_real_ = 0;
   bool critical_ = false;
   std::array<double, 3> pos_{};
+  std::array<double, 3> g54_{};     // persists over resets (EEPROM)
   std::deque<Block> planner_;
   std::optional<std::array<double, 3>> held_target_;  // what '~' resumes to
   Block hold_decel_;

@@ -76,7 +76,7 @@ bool IsProcessed(const CameraConfig& camera, const std::string& ext) {
 
 std::string CaptureSummary::ToString() const {
   double accounted =
-      motion_s + settle_s + lamp_s + camera_s + storage_s + queue_wait_s + processing_tail_s;
+      open_s + motion_s + settle_s + lamp_s + camera_s + storage_s + queue_wait_s + processing_tail_s;
   // The shutter is part of the camera's time only when the body waited it out; a simulated
   // camera renders at once, and its frames' exposures add up to more than its time.
   std::string shutter =
@@ -88,10 +88,10 @@ std::string CaptureSummary::ToString() const {
   std::string s = fmt::format(
       "poses {}  frames {} (captured now {}, verified from before {}, redone {})  retries {}  "
       "faults {}\n"
-      "time {:.2f} s: motion {:.2f} s, settle {:.2f} s, lamp {:.2f} s, camera {:.2f} s{}, "
+      "time {:.2f} s: opening the devices {:.2f} s, motion {:.2f} s, settle {:.2f} s, lamp {:.2f} s, camera {:.2f} s{}, "
       "storage {:.2f} s, waiting on processing {:.2f} s, own overhead {:.2f} s",
       poses, frames, frames_captured, frames_verified, frames_redone, retries, faults, total_s,
-      motion_s, settle_s, lamp_s, camera_s, shutter, storage_s, queue_wait_s,
+      open_s, motion_s, settle_s, lamp_s, camera_s, shutter, storage_s, queue_wait_s,
       std::max(0.0, total_s - accounted));
   s += fmt::format(
       "\nprocessing: {} radiance maps, {} failed; decode {:.2f} s, response {:.2f} s, merge "
@@ -288,13 +288,22 @@ Status CaptureDaemon::MoveAsideUnjournaled(RunState& run, const std::set<fs::pat
 Status CaptureDaemon::OpenDevices(RunState& run) {
   const CameraConfig& cc = session_.config().camera;
   const MotorConfig& mc = session_.config().motor;
+  auto t_open = Clock::now();
   Status st = WithRetries(
       run, cc.retries, cc.retry_backoff_s, [&] { return camera_.Open(); }, nullptr);
   if (!st.ok()) return Fault(run, st.error(), camera_.Describe());
+  // GRBL's Open() waits out the board's reset and banner (up to grbl.banner_timeout_s).
   st = WithRetries(run, mc.retries, mc.retry_backoff_s, [&] { return motor_.Open(); }, nullptr);
   if (!st.ok()) return Fault(run, st.error(), motor_.Describe());
   run.motor_open = true;
+  // The grid against the controller's own travel, read at open: refused before anything moves.
+  st = motor_.CheckReach(run.poses);
+  if (!st.ok()) {
+    Status f = Fault(run, st.error(), motor_.Describe());
+    return Error{ErrorCode::kInvalidInput, f.error().message, f.error().context};
+  }
   st = lamp_.Open();
+  run.sum.open_s += Since(t_open);
   if (!st.ok()) return Fault(run, st.error(), lamp_.Describe());
   run.lamp_open = true;
 
@@ -745,12 +754,22 @@ Status CaptureDaemon::Fault(RunState& run, const Error& e, const std::string& de
   auto log = Log("session");
   ++run.sum.faults;
   Park(run);
-  // "pose P: <device>: message" — the device's own context ("sim camera", "/dev/ttyACM0")
-  // only when its description does not already name it.
+  // "pose P: <device>: message", each context once: of the inner context, the parts that
+  // name this pose again or that the device's description already holds ("sim camera",
+  // "/dev/ttyACM0") are left out.
   Error inner = e;
-  if (!inner.context.empty() && device.find(inner.context) != std::string::npos)
-    inner.context.clear();
-  Error err = inner.Within(device).Within("pose " + run.current_pose);
+  const std::string pose = "pose " + run.current_pose;
+  std::string kept;
+  for (size_t start = 0; start <= inner.context.size();) {
+    const size_t end = inner.context.find(": ", start);
+    const std::string part = inner.context.substr(start, end == std::string::npos ? end : end - start);
+    if (!part.empty() && part != pose && device.find(part) == std::string::npos)
+      kept += (kept.empty() ? "" : ": ") + part;
+    if (end == std::string::npos) break;
+    start = end + 2;
+  }
+  inner.context = kept;
+  Error err = inner.Within(device).Within(pose);
   log->error("fault: {}", err.ToString());
   Status st = session_.journal().Append({{"event", "fault"}, {"device", device},
                                          {"pose", run.current_pose}, {"error", err.ToString()}});

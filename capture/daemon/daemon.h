@@ -34,7 +34,9 @@ struct CaptureSummary {
   int frames_redone = 0;                 // stored but damaged or unjournaled: moved aside, redone
   int retries = 0;
   int faults = 0;
-  double total_s = 0, motion_s = 0, settle_s = 0, lamp_s = 0, camera_s = 0, exposure_s = 0,
+  // open_s: opening camera, motor and lamp, a controller's start-up (an Arduino's reset
+  // and banner after the port opens) included: the devices' time, not the rig's.
+  double total_s = 0, open_s = 0, motion_s = 0, settle_s = 0, lamp_s = 0, camera_s = 0, exposure_s = 0,
          storage_s = 0, queue_wait_s = 0, processing_tail_s = 0;
   ProcessingSummary processing;
   bool processing_collected = false;     // `processing` holds the processor's final count

@@ -31,6 +31,13 @@ struct CapturedFrame {
   std::vector<CapturedFile> files;
 };
 
+// One setting as the body reports it now, as `gphoto2 --get-config NAME` prints it: the
+// libgphoto2 config tree's name ("f-number"), its label ("F-Number") and current value.
+struct CameraReading {
+  std::string what;  // "iso", "aperture", "shutter", "image format", "battery"
+  std::string name, label, value;
+};
+
 class Camera {
  public:
   virtual ~Camera() = default;
@@ -51,6 +58,10 @@ class Camera {
   // Sets the exposure (one of ShutterSpeeds()), captures, downloads to memory.
   // The returned frame carries the exposure actually applied, read back from the body.
   virtual Result<CapturedFrame> Capture(Seconds exposure) = 0;
+
+  // The body's current ISO, aperture, shutter speed, image format and battery level, each
+  // that it has (after Open). A camera without a settings tree (the simulator) has none.
+  virtual Result<std::vector<CameraReading>> Readings() { return std::vector<CameraReading>{}; }
 };
 
 }  // namespace rig

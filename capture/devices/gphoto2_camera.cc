@@ -115,6 +115,59 @@ class GPhoto2Camera final : public Camera {
     context_ = nullptr;
   }
 
+  Result<std::vector<CameraReading>> Readings() override {
+    // The names libgphoto2's ptp2 driver (and others) give these settings, first found wins.
+    static const std::vector<std::pair<const char*, std::vector<const char*>>> kWanted = {
+        {"iso", {"iso", "isospeed"}},
+        {"aperture", {"f-number", "aperture"}},
+        {"shutter", {"shutterspeed", "shutterspeed2", "eos-shutterspeed"}},
+        {"image format", {"imagequality", "imageformat"}},  // not "imagesize": pixels
+        {"battery", {"batterylevel"}},
+    };
+    std::vector<CameraReading> out;
+    for (const auto& [what, names] : kWanted) {
+      for (const char* name : names) {
+        RIG_ASSIGN_OR_RETURN(CameraWidget * w, RetryWhileBusy(fmt::format("reading '{}'", name),
+                                                              [&] { return FreshWidget(name); }));
+        if (!w) continue;
+        CameraReading r{what, name, "", ""};
+        const char* label = nullptr;
+        if (gp_widget_get_label(w, &label) >= 0 && label) r.label = label;
+        r.value = WidgetValueText(w);
+        gp_widget_free(w);
+        out.push_back(std::move(r));
+        break;
+      }
+    }
+    return out;
+  }
+
+  // A widget's current value as text, whatever its type (text, menu and radio: the text;
+  // range: the number; toggle: 0/1; date: seconds since the epoch).
+  static std::string WidgetValueText(CameraWidget* w) {
+    CameraWidgetType type;
+    if (gp_widget_get_type(w, &type) < 0) return "";
+    switch (type) {
+      case GP_WIDGET_TEXT:
+      case GP_WIDGET_RADIO:
+      case GP_WIDGET_MENU: {
+        const char* v = nullptr;
+        return gp_widget_get_value(w, &v) >= 0 && v ? v : "";
+      }
+      case GP_WIDGET_RANGE: {
+        float f = 0;
+        return gp_widget_get_value(w, &f) >= 0 ? fmt::format("{:g}", f) : "";
+      }
+      case GP_WIDGET_TOGGLE:
+      case GP_WIDGET_DATE: {
+        int i = 0;
+        return gp_widget_get_value(w, &i) >= 0 ? std::to_string(i) : "";
+      }
+      default:
+        return "";
+    }
+  }
+
   Result<std::vector<Seconds>> ShutterSpeeds() override {
     RIG_ASSIGN_OR_RETURN(Speeds s, ReadSpeeds());
     std::vector<Seconds> out;

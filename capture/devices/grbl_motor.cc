@@ -236,6 +236,11 @@ GrblMotor::Line GrblMotor::Classify(const std::string& text) {
     l.kind = Kind::kMessage;
     if (text.find("'$H'|'$X' to unlock") != std::string::npos) state_ = "Alarm";
     if (text.find("Caution: Unlocked") != std::string::npos) state_ = "Idle";
+    std::array<double, 3> offset{};
+    if (text.rfind("[G54:", 0) == 0 && ParseTriple(std::string_view(text).substr(5, text.size() - 6), &offset))
+      g54_ = offset;
+    if (text.rfind("[G92:", 0) == 0 && ParseTriple(std::string_view(text).substr(5, text.size() - 6), &offset))
+      g92_ = offset;
     Log("motion")->debug("grbl port={} message='{}'", selector_.Describe(), text);
   } else if (text.front() == '$' && text.find('=') != std::string::npos) {
     int n = 0;
@@ -409,6 +414,83 @@ Status GrblMotor::ReadSettings() {
   return Ok();
 }
 
+Status GrblMotor::ReadOffsets() {
+  offsets_known_ = false;
+  RIG_TRY(Queue("$#"));
+  RIG_ASSIGN_OR_RETURN(Line r, AwaitResponse(Seconds(config_.reply_timeout_s), OnAlarm::kRecord));
+  if (r.kind == Kind::kError) {
+    Log("motion")->warn("grbl port={} cannot read the work offsets ($#): error:{} ({}); the grid is not "
+                        "checked against the firmware's travel",
+                        selector_.Describe(), r.code, GrblErrorMeaning(r.code));
+    return Ok();
+  }
+  offsets_known_ = true;
+  // GRBL sends WCO only in every 10th to 30th status report: until one comes, the offsets
+  // read here are the work coordinate offset (G54 + G92; TLO is on Z, not ours).
+  for (int i = 0; i < 3; ++i) wco_[i] = g54_[i] + g92_[i];
+  Log("motion")->info("grbl port={} G54={:.3f},{:.3f},{:.3f} G92={:.3f},{:.3f},{:.3f}", selector_.Describe(),
+                      g54_[0], g54_[1], g54_[2], g92_[0], g92_[1], g92_[2]);
+  return Ok();
+}
+
+std::array<double, 3> GrblMotor::ToWork(const Pose& pose) const {
+  std::array<double, 3> work{};
+  work[h_index_] = pose.h_deg * config_.grbl.units_per_degree;
+  work[v_index_] = pose.v_deg * config_.grbl.units_per_degree;
+  return work;
+}
+
+Pose GrblMotor::ToPose(const std::array<double, 3>& work) const {
+  return Pose{work[h_index_] / config_.grbl.units_per_degree, work[v_index_] / config_.grbl.units_per_degree};
+}
+
+std::string GrblMotor::TravelViolation(const Pose& pose) const {
+  auto get = [&](int n) { auto it = settings_.find(n); return it == settings_.end() ? NAN : it->second; };
+  // Without homing ($22=0) the firmware's machine space starts wherever the arm stood at
+  // power-up; only after homing does it span -$13n .. 0 (limits.c, system.c).
+  if (get(22) != 1 || !offsets_known_) return "";
+  const std::array<double, 3> work = ToWork(pose);
+  const double upd = config_.grbl.units_per_degree;
+  for (auto [name, index] : {std::pair{"h", h_index_}, std::pair{"v", v_index_}}) {
+    const double travel = get(130 + index);
+    if (!std::isfinite(travel) || travel <= 0) continue;
+    const double offset = g54_[index] + g92_[index];
+    const double machine = work[index] + offset;
+    if (machine <= kPositionToleranceUnits && machine >= -travel - kPositionToleranceUnits) continue;
+    const std::string axis = index == h_index_ ? config_.grbl.h_axis : config_.grbl.v_axis;
+    const double deg = index == h_index_ ? pose.h_deg : pose.v_deg;
+    const double rig_min = index == h_index_ ? config_.h_limit_min_deg : config_.v_limit_min_deg;
+    const double rig_max = index == h_index_ ? config_.h_limit_max_deg : config_.v_limit_max_deg;
+    return fmt::format(
+        "{} = {:g} deg is outside the firmware's travel: work {}{:.3f} + work offset {:.3f} (G54 + G92, $#) "
+        "= machine {}{:.3f}, but ${}={:g} allows machine {}{:g} .. 0 after homing, so {} can only be "
+        "{:.3f} .. {:.3f} deg; the rig's pose limits allow {:g} .. {:g} deg ({}_limit_min_deg, "
+        "{}_limit_max_deg). {}",
+        name, deg, axis, work[index], offset, axis, machine, 130 + index, travel, axis, -travel, name,
+        (-travel - offset) / upd, -offset / upd, rig_min, rig_max, name, name,
+        get(20) == 1 ? "GRBL would raise ALARM:2 (soft limit, $20=1) and then answer nothing until a reset"
+                     : "the arm would run past its travel ($20=0: GRBL does not check)");
+  }
+  return "";
+}
+
+Status GrblMotor::CheckReach(const std::vector<Pose>& poses) {
+  std::string first;
+  int outside = 0;
+  for (const Pose& p : poses) {
+    std::string why = TravelViolation(p);
+    if (why.empty()) continue;
+    if (first.empty()) first = "pose " + p.Name() + ": " + why;
+    ++outside;
+  }
+  if (outside == 0) return Ok();
+  return Fail(ErrorCode::kInvalidInput,
+              fmt::format("{} of {} poses of the grid lie outside the firmware's travel, refused before "
+                          "any move; the first, {}. Change the grid, the pose limits or the firmware's "
+                          "$13n/work offset (docs/rig-setup.md)",
+                          outside, poses.size(), first));
+}
+
 Status GrblMotor::OpenPort() {
   port_.reset();
   outstanding_.clear();
@@ -423,6 +505,7 @@ Status GrblMotor::Open() {
     RIG_TRY(WaitForBannerOrReset());
     RIG_ASSIGN_OR_RETURN(GrblStatus s, QueryStatus());
     RIG_TRY(ReadSettings());
+    RIG_TRY(ReadOffsets());
     Log("motion")->info("grbl open port={} device={} state={}", selector_.Describe(), port_->device(),
                         s.state);
     return Ok();
@@ -471,8 +554,7 @@ Status GrblMotor::DoHome() {
   state_ = "Idle";
   RIG_ASSIGN_OR_RETURN(GrblStatus s, QueryStatus());
   auto w = WorkPosition(s);
-  const double upd = config_.grbl.units_per_degree;
-  last_pose_ = Pose{w[h_index_] / upd, w[v_index_] / upd};
+  last_pose_ = ToPose(w);
   if (std::fabs(w[h_index_]) > kPositionToleranceUnits || std::fabs(w[v_index_]) > kPositionToleranceUnits)
     Log("motion")->warn("grbl port={} after homing the work position is h={:.3f} v={:.3f} units, not 0: "
                         "set the work offset (G10 L20 P1 X0 Y0) so that home is pose 0,0",
@@ -512,6 +594,8 @@ Status GrblMotor::MoveTo(const Pose& pose) {
   if (const std::string why = SoftLimitViolation(config_, pose); !why.empty())
     return Fail(ErrorCode::kInvalidInput, why).Within(where);
   if (!port_) return Fail(ErrorCode::kFault, "not open").Within(where);
+  if (const std::string why = TravelViolation(pose); !why.empty())
+    return Fail(ErrorCode::kInvalidInput, why).Within(where);
   if (!fault_.empty())
     return Fail(ErrorCode::kFault, "in fault state (" + fault_ + "): home or reconnect first").Within(where);
   Status st = DoMove(pose);
@@ -533,9 +617,7 @@ Status GrblMotor::DoMove(const Pose& pose) {
     if (s.state == "Alarm") return AlarmLocked();
   }
   const double upd = config_.grbl.units_per_degree;
-  std::array<double, 3> target{};
-  target[h_index_] = pose.h_deg * upd;
-  target[v_index_] = pose.v_deg * upd;
+  const std::array<double, 3> target = ToWork(pose);
   std::string line = fmt::format("G90 G1 {}{:.3f} {}{:.3f} F{:.1f}", config_.grbl.h_axis, target[h_index_],
                                  config_.grbl.v_axis, target[v_index_], config_.speed_deg_per_s * 60 * upd);
   const bool dwell = config_.grbl.completion == "dwell";
@@ -611,11 +693,29 @@ Status GrblMotor::WaitIdleByPolling(const Pose& pose, const std::array<double, 3
   }
 }
 
+Seconds GrblMotor::BrakeWait() const {
+  // A feed hold decelerates at the block's acceleration from its speed: v/a seconds over
+  // v^2/2a units. Per axis, v is the feed (capped by $11n) and a is $12n; the slowest axis
+  // bounds any block's stop. Waited out with a margin before the reset, since a reset
+  // before Hold:0 raises ALARM:3 (mc_reset()).
+  auto get = [&](int n) { auto it = settings_.find(n); return it == settings_.end() ? NAN : it->second; };
+  const double upd = config_.grbl.units_per_degree;
+  double t = 0;
+  for (int index : {h_index_, v_index_}) {
+    double v = config_.speed_deg_per_s * upd;
+    if (const double rate = get(110 + index); std::isfinite(rate) && rate > 0) v = std::min(v, rate / 60);
+    double a = get(120 + index);
+    if (!std::isfinite(a) || a <= 0) a = config_.accel_deg_per_s2 * upd;
+    t = std::max(t, v / a);
+  }
+  return Seconds(1.5 * t + config_.reply_timeout_s);
+}
+
 Status GrblMotor::StopMotion(bool unlock) {
   if (!port_) return Fail(ErrorCode::kFault, "not open");
   // Feed hold decelerates under control; then a soft reset drops the rest of the planner.
   RIG_TRY(SendRealtime('!'));
-  auto deadline = After(Seconds(config_.reply_timeout_s));
+  auto deadline = After(BrakeWait());
   while (Clock::now() < deadline) {
     auto s = QueryStatus(false);
     if (!s.ok()) {
@@ -672,9 +772,7 @@ Error GrblMotor::AbortMove(const Pose& pose, const Error& why) {
 Result<Pose> GrblMotor::Position() {
   if (!port_) return Fail(ErrorCode::kFault, "not open");
   RIG_ASSIGN_OR_RETURN(GrblStatus s, QueryStatus());
-  auto w = WorkPosition(s);
-  const double upd = config_.grbl.units_per_degree;
-  return Pose{w[h_index_] / upd, w[v_index_] / upd};
+  return ToPose(WorkPosition(s));
 }
 
 Status GrblMotor::Stop() {
@@ -687,30 +785,63 @@ Status GrblMotor::Stop() {
   return StopMotion(true);
 }
 
-Status GrblMotor::AfterReconnect() {
+Status GrblMotor::ProbeAfterReopen(bool* was_reset) {
+  *was_reset = false;
+  // A controller that kept its power answers '?' at once; one reset by the reopen (an
+  // Arduino's DTR) swallows it in its bootloader and prints its banner when it is up.
+  RIG_TRY(SendRealtime('?'));
+  auto deadline = After(Seconds(config_.grbl.banner_timeout_s));
+  for (;;) {
+    Seconds left = Left(deadline);
+    if (left.count() <= 0) break;
+    auto next = NextLine(left);
+    if (!next.ok()) {
+      if (next.error().code == ErrorCode::kTimeout) break;
+      return next.error();
+    }
+    if (next->kind == Kind::kStatus) return Ok();
+    if (next->kind == Kind::kBanner) {
+      *was_reset = true;
+      outstanding_.clear();
+      pending_alarm_ = 0;
+      return Ok();
+    }
+  }
+  // Silent (no auto-reset and the '?' lost, or a critical alarm that answers nothing): a soft
+  // reset. It keeps the position when the controller is idle and raises ALARM:3 when not.
+  return WaitForBannerOrReset();
+}
+
+Status GrblMotor::AfterReconnect(bool was_reset) {
   if (config_.after_reconnect == "home") return DoHome();
   RIG_ASSIGN_OR_RETURN(GrblStatus s, QueryStatus());
-  if (!last_pose_) {
-    fault_ = "position unknown after reconnect and after_reconnect = verify";
-    return Fail(ErrorCode::kFault, fault_ + ": home first");
+  // The link went, the controller did not: it finishes the moves it had. Wait for Idle.
+  auto deadline = After(Seconds(config_.move_timeout_s));
+  while ((s.state == "Run" || s.state == "Jog") && Clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::duration<double>(config_.grbl.poll_interval_s));
+    RIG_ASSIGN_OR_RETURN(s, QueryStatus());
   }
-  if (s.state == "Alarm") {
-    RIG_TRY(Queue("$X"));
-    RIG_ASSIGN_OR_RETURN(Line r, AwaitResponse(Seconds(config_.reply_timeout_s), OnAlarm::kRecord));
-    (void)r;
+  if (was_reset || s.state != "Idle") {
+    last_pose_.reset();
+    const std::string why =
+        was_reset ? fmt::format("the controller was reset when the link came back (it printed its banner; "
+                                "state {}): GRBL restarts its position then",
+                                s.state)
+        : s.state == "Alarm"
+            ? fmt::format("the controller is in alarm after the link came back{}",
+                          pending_alarm_ ? fmt::format(" (ALARM:{}: {})", pending_alarm_,
+                                                       GrblAlarmMeaning(pending_alarm_))
+                                         : std::string(" (alarm-locked)"))
+            : fmt::format("the controller reports state {} after the link came back, not Idle", s.state);
+    fault_ = why + "; its position is not known";
+    return Fail(ErrorCode::kFault, fault_ + ": home it ('rig home', or motor.after_reconnect = \"home\")");
   }
-  const double upd = config_.grbl.units_per_degree;
-  auto w = WorkPosition(s);
-  Pose now{w[h_index_] / upd, w[v_index_] / upd};
-  if (std::fabs(w[h_index_] - last_pose_->h_deg * upd) > kPositionToleranceUnits ||
-      std::fabs(w[v_index_] - last_pose_->v_deg * upd) > kPositionToleranceUnits) {
-    fault_ = fmt::format("position after reconnect h {:.3f} v {:.3f} deg differs from the last pose {}",
-                         now.h_deg, now.v_deg, last_pose_->Name());
-    return Fail(ErrorCode::kFault, fault_ + ": re-home (after_reconnect = verify)");
-  }
+  // Idle, no alarm, no reset: GRBL keeps its position through a lost link, so it is known.
+  const Pose here = ToPose(WorkPosition(s));
+  last_pose_ = here;
   fault_.clear();
-  Log("motion")->info("grbl port={} position verified after reconnect at {}", selector_.Describe(),
-                      last_pose_->Name());
+  Log("motion")->info("grbl port={} position kept through the lost link: Idle at h {:.3f} v {:.3f} deg",
+                      selector_.Describe(), here.h_deg, here.v_deg);
   return Ok();
 }
 
@@ -731,13 +862,12 @@ Status GrblMotor::Reconnect() {
     }
     backoff_s *= 2;
     Status st = OpenPort();
-    if (st.ok()) st = WaitForBannerOrReset();
+    bool was_reset = false;
+    if (st.ok()) st = ProbeAfterReopen(&was_reset);
+    if (st.ok()) st = ReadSettings();
+    if (st.ok()) st = ReadOffsets();
     if (st.ok()) {
-      auto s = QueryStatus();
-      st = s.ok() ? ReadSettings() : Status(s.error());
-    }
-    if (st.ok()) {
-      st = AfterReconnect();
+      st = AfterReconnect(was_reset);
       if (st.ok()) {
         log->warn("grbl port={} reconnected (attempt {} of {}) after_reconnect={}", selector_.Describe(),
                   attempt, attempts, config_.after_reconnect);

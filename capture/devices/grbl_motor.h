@@ -52,6 +52,9 @@ class GrblMotor final : public Motor {
   Result<Pose> Position() override;
   Status Stop() override;
   Status Reconnect() override;
+  // Every pose's work coordinates inside the firmware's travel (machine space -$13n .. 0
+  // after homing, work = machine - G54 - G92 as read with $#), when homing is enabled ($22=1).
+  Status CheckReach(const std::vector<Pose>& poses) override;
   // $X: kills the alarm lock without homing (the controller's position is kept, unverified).
   Status Unlock() override;
 
@@ -59,6 +62,8 @@ class GrblMotor final : public Motor {
   const std::string& fault() const { return fault_; }
   const std::map<int, double>& settings() const { return settings_; }
   const std::string& state() const { return state_; }
+  // The G54 and G92 offsets read with $# at open (machine units).
+  const std::array<double, 3>& g54() const { return g54_; }
   int reconnects() const { return reconnects_; }
   int ignored_lines() const { return ignored_lines_; }
 
@@ -83,13 +88,24 @@ class GrblMotor final : public Motor {
   Result<Line> AwaitResponse(Seconds timeout, OnAlarm on_alarm, bool interruptible = true);
   Result<GrblStatus> QueryStatus(bool interruptible = true);
   Status ReadSettings();
+  Status ReadOffsets();  // $#: G54 and G92
+  // The one mapping of rig angles to the controller's work coordinates and back.
+  std::array<double, 3> ToWork(const Pose& pose) const;
+  Pose ToPose(const std::array<double, 3>& work) const;
+  // Why the firmware would refuse `pose` (outside its travel), naming both limits; "" if not.
+  std::string TravelViolation(const Pose& pose) const;
+  // After the port came back: a status report (the controller kept running) or a banner
+  // (it was reset); sends a soft reset only when it says nothing at all.
+  Status ProbeAfterReopen(bool* was_reset);
   Status DoHome();
   Status DoMove(const Pose& pose);
   Status WaitIdleByPolling(const Pose& pose, const std::array<double, 3>& target);
   // A move that did not complete: feed hold, soft reset, fault.
   Error AbortMove(const Pose& pose, const Error& why);
   Status StopMotion(bool unlock);
-  Status AfterReconnect();
+  // How long a feed hold may take to stop, from the feed and $11n/$12n, with a margin.
+  Seconds BrakeWait() const;
+  Status AfterReconnect(bool was_reset);
   Error Fail(ErrorCode code, const std::string& message) const;
   Error AlarmError(int code, const std::string& during) const;
   // The alarm lock (power-up with homing enabled, or after an alarm): kFault, says $H / $X.
@@ -104,6 +120,8 @@ class GrblMotor final : public Motor {
   std::deque<std::pair<std::string, size_t>> outstanding_;  // line text, bytes in GRBL's buffer
   std::string state_ = "Unknown";
   std::array<double, 3> wco_{};
+  std::array<double, 3> g54_{}, g92_{};
+  bool offsets_known_ = false;
   std::map<int, double> settings_;
   std::optional<Pose> last_pose_;
   std::string fault_;

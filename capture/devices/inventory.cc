@@ -196,4 +196,28 @@ std::string InventoryToText(const Inventory& inv) {
   return s;
 }
 
+Result<std::vector<CameraReading>> ReadCameraSettings(Camera& camera) {
+  RIG_TRY(camera.Open());
+  auto readings = camera.Readings();
+  camera.Close();
+  if (!readings.ok()) return readings.error().Within(camera.Describe());
+  return readings;
+}
+
+std::string CameraReadingsToText(const std::string& camera, const std::vector<CameraReading>& readings) {
+  std::string out = camera + "\n";
+  if (readings.empty()) return out + "  reports no settings (no libgphoto2 config tree)\n";
+  for (const char* what : {"iso", "aperture", "shutter", "image format", "battery"}) {
+    bool found = false;
+    for (const auto& r : readings) {
+      if (r.what != what) continue;
+      out += fmt::format("  {:<13} {}  ({} '{}')\n", r.what, r.value.empty() ? "(empty)" : r.value, r.name,
+                         r.label);
+      found = true;
+    }
+    if (!found) out += fmt::format("  {:<13} not offered by this body\n", what);
+  }
+  return out;
+}
+
 }  // namespace rig

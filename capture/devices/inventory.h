@@ -7,6 +7,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include "capture/devices/camera.h"
+#include "config/result.h"
+
 namespace rig {
 
 struct CameraFound {
@@ -45,6 +48,12 @@ struct Inventory {
 Inventory FindDevices();
 
 nlohmann::json InventoryToJson(const Inventory& inventory);
+
+// `rig devices --camera`: opens `camera`, reads its current settings (Camera::Readings),
+// closes it. Errors name the camera.
+Result<std::vector<CameraReading>> ReadCameraSettings(Camera& camera);
+// "iso (ISO Speed, iso): 100" per line; says so when the camera reports none.
+std::string CameraReadingsToText(const std::string& camera, const std::vector<CameraReading>& readings);
 // The report for a person: each kind, or that none was found and where to look.
 std::string InventoryToText(const Inventory& inventory);
 

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "config/result.h"
 #include "capture/plan/pose.h"
@@ -25,6 +26,14 @@ class Motor {
   // Moves to `pose` and returns only once motion has completed (never while the arm is
   // still moving: the camera must not fire then). Fails outside the soft limits.
   virtual Status MoveTo(const Pose& pose) = 0;
+
+  // Refuses, before anything moves, poses the controller cannot reach: outside its travel or
+  // its own soft limits (after Open). The error names the pose, the rig's limit and the
+  // controller's. Controllers that hold no such limits: nothing to check.
+  virtual Status CheckReach(const std::vector<Pose>& poses) {
+    (void)poses;
+    return Ok();
+  }
 
   // Where the axes are now, as the controller reports it.
   virtual Result<Pose> Position() = 0;

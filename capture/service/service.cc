@@ -429,7 +429,8 @@ void CaptureService::RunCapture(JobInfo& job, Session& session) {
                 {"frames_captured", summary.frames_captured},
                 {"frames_verified", summary.frames_verified},
                 {"retries", summary.retries},     {"faults", summary.faults},
-                {"total_s", summary.total_s},     {"motion_s", summary.motion_s},
+                {"total_s", summary.total_s},     {"open_s", summary.open_s},
+                {"motion_s", summary.motion_s},
                 {"settle_s", summary.settle_s},   {"lamp_s", summary.lamp_s},
                 {"camera_s", summary.camera_s},   {"exposure_s", summary.exposure_s},
                 {"storage_s", summary.storage_s}, {"queue_wait_s", summary.queue_wait_s}};

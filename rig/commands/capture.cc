@@ -2,6 +2,7 @@
 #include <cstdio>
 
 #include "config/log.h"
+#include "config/settings.h"
 #include "rig/backends.h"
 #include "rig/commands/command.h"
 #include "rig/commands/daemon_client.h"
@@ -19,10 +20,15 @@ int RunCapture(int argc, char** argv) {
   std::string config_path, out;
   bool dry_run = false, no_process = false, no_progress = false;
   std::string level;
+  std::vector<std::string> set;
   DaemonTarget daemon_target;
   app.add_option("--config", config_path, "session configuration (TOML)")->required();
   app.add_option("--out", out, "session folder to create (refused if it holds a session)")->required();
   app.add_flag("--dry-run", dry_run, "simulate every device (camera, motor, lamp), whatever the config says");
+  app.add_option("--set", set,
+                 "override a setting of the configuration for this session (KEY=VALUE, repeatable; "
+                 "e.g. camera.iso=200 or camera.port=usb:001,004): validated as the file is, and "
+                 "recorded in the session's session.toml");
   app.add_flag("--no-process", no_process, "store frames only; process later with 'rig process'");
   app.add_flag("--no-progress", no_progress, "no progress bar");
   AddDaemonOptions(app, &daemon_target);
@@ -35,6 +41,11 @@ int RunCapture(int argc, char** argv) {
     for (const auto& d : cr.diagnostics) std::fprintf(stderr, "%s\n", d.ToString().c_str());
     return 2;
   }
+  auto overridden = ApplyOverrides(cr.config, set);
+  if (!overridden.ok()) return ReportError("capture", overridden.error());
+  for (const auto& c : overridden->second)
+    std::printf("setting %s: %s -> %s\n", c.key.c_str(), c.old_value.empty() ? "unset" : c.old_value.c_str(),
+                c.new_value.c_str());
   auto daemon = ResolveDaemon(daemon_target, /*fallback_default=*/false);
   if (!daemon.ok()) return ReportError("capture", daemon.error());
   if (*daemon) {
@@ -42,15 +53,18 @@ int RunCapture(int argc, char** argv) {
     // need not see this machine's files), checked here first for file:line errors.
     auto text = ReadFileBytes(config_path);
     if (!text.ok()) return ReportError("capture", text.error());
+    // With --set, the configuration the job runs is the overridden one.
+    const std::string toml_text = set.empty() ? std::string(text->begin(), text->end())
+                                              : ToToml(overridden->first);
     nlohmann::json job = {{"kind", "capture"},
                           {"session", fs::absolute(out).lexically_normal().string()},
                           {"config", fs::absolute(config_path).string()},
-                          {"config_toml", std::string(text->begin(), text->end())},
+                          {"config_toml", toml_text},
                           {"dry_run", dry_run},
                           {"process", !no_process}};
     return SubmitToDaemon("capture", **daemon, job, daemon_target.wait);
   }
-  Config config = cr.config;
+  Config config = overridden->first;
   if (dry_run) UseSimulatedBackends(&config);
   auto session = Session::Create(out, config);
   if (!session.ok()) return ReportError("capture", session.error());

@@ -71,9 +71,11 @@ TEST(CaptureSummary, WhenTheShutterIsWaitedForItIsAPartOfTheCameraTime) {
   s.camera_s = 4;
   s.exposure_s = 3;
   s.motion_s = 2;
+  s.open_s = 1.5;  // a controller's start-up: the devices' time, not the rig's
   const std::string text = s.ToString();
   EXPECT_THAT(text, HasSubstr("camera 4.00 s (of which shutter 3.00 s)"));
-  EXPECT_THAT(text, HasSubstr("own overhead 4.00 s"));
+  EXPECT_THAT(text, HasSubstr("opening the devices 1.50 s"));
+  EXPECT_THAT(text, HasSubstr("own overhead 2.50 s"));
 }
 
 TEST(CaptureSummary, TheModelsLeaveOneOutErrorCarriesItsUnit) {

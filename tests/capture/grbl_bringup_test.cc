@@ -23,6 +23,7 @@
 #include "sim/grbl_emulator.h"
 #include "tests/support/motor_emulators.h"
 #include "tests/support/pty_shim.h"
+#include "tests/support/raw_pty.h"
 #include "tests/support/run_rig.h"
 
 namespace rig {
@@ -33,6 +34,8 @@ using rig::testing::FastGrbl;
 using rig::testing::GrblConfigFor;
 using rig::testing::StartGrbl;
 using ::testing::Not;
+using rig::testing::MposX;
+using rig::testing::RawPty;
 using Clock = std::chrono::steady_clock;
 
 const bool kPtyShim = rig::testing::PtyShimLinked();
@@ -162,56 +165,6 @@ TEST(GrblBringUp, AControllerAlarmLockedAtStartIsAClearNonRetryableError) {
 }
 
 // ---- The emulator against GRBL 1.1h's mc_reset(): a raw client on the pty ----------------
-
-class RawPty {
- public:
-  explicit RawPty(const std::string& path) {
-    fd_ = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK);
-    if (fd_ < 0) return;
-    termios t{};
-    tcgetattr(fd_, &t);
-    cfmakeraw(&t);
-    tcsetattr(fd_, TCSANOW, &t);
-  }
-  ~RawPty() {
-    if (fd_ >= 0) ::close(fd_);
-  }
-  bool ok() const { return fd_ >= 0; }
-  void Write(const std::string& s) { ASSERT_EQ(::write(fd_, s.data(), s.size()), (ssize_t)s.size()); }
-  // Reads until `needle` appears in what was read since the last call (or timeout).
-  std::string ReadUntil(const std::string& needle, double timeout_s = 2.0) {
-    auto deadline = Clock::now() + std::chrono::duration<double>(timeout_s);
-    std::string got;
-    while (Clock::now() < deadline && got.find(needle) == std::string::npos) {
-      pollfd p{fd_, POLLIN, 0};
-      if (::poll(&p, 1, 10) <= 0) continue;
-      char buf[512];
-      ssize_t n = ::read(fd_, buf, sizeof buf);
-      if (n > 0) got.append(buf, static_cast<size_t>(n));
-    }
-    return got;
-  }
-  // Polls '?' until the report starts with `<state`.
-  std::string WaitState(const std::string& state, double timeout_s = 3.0) {
-    auto deadline = Clock::now() + std::chrono::duration<double>(timeout_s);
-    std::string last;
-    while (Clock::now() < deadline) {
-      Write("?");
-      last = ReadUntil(">", 0.2);
-      if (last.find("<" + state) != std::string::npos) return last;
-      std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    }
-    return last;
-  }
-
- private:
-  int fd_ = -1;
-};
-
-double MposX(const std::string& report) {
-  size_t p = report.find("MPos:");
-  return p == std::string::npos ? NAN : std::strtod(report.c_str() + p + 5, nullptr);
-}
 
 GrblEmulatorOptions RealTimeNoHoming() {
   GrblEmulatorOptions o;

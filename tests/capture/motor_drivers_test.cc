@@ -60,9 +60,9 @@ TEST(GrblMotor, HomesMovesAndReadsBackThePositionInDegrees) {
   ASSERT_TRUE(st.ok()) << st.error().ToString();
   // The controller is Idle at the target when MoveTo returns (G4 P0 answered).
   EXPECT_EQ(emu->State(), "Idle");
-  const auto p = emu->Position();
-  EXPECT_NEAR(std::abs(p[0]), 60, 0.01);
-  EXPECT_NEAR(std::abs(p[1]), 20, 0.01);
+  const auto p = emu->WorkPosition();
+  EXPECT_NEAR(p[0], 60, 0.01);
+  EXPECT_NEAR(p[1], 20, 0.01);
   auto where = motor.Position();
   ASSERT_TRUE(where.ok());
   EXPECT_NEAR(where->h_deg, 30, 0.01);
@@ -83,8 +83,8 @@ TEST(GrblMotor, VisitsEveryGridPoseAndIsIdleThereEachTime) {
     Status st = motor.MoveTo(p);
     ASSERT_TRUE(st.ok()) << st.error().ToString();
     ASSERT_EQ(emu->State(), "Idle") << p.Name();
-    EXPECT_NEAR(std::abs(emu->Position()[0]), p.h_deg, 0.01) << p.Name();
-    EXPECT_NEAR(std::abs(emu->Position()[1]), p.v_deg, 0.01) << p.Name();
+    EXPECT_NEAR(emu->WorkPosition()[0], p.h_deg, 0.01) << p.Name();
+    EXPECT_NEAR(emu->WorkPosition()[1], p.v_deg, 0.01) << p.Name();
   }
   // Every move took the time its trapezoid says (the emulator is not short-cutting).
   EXPECT_GE(emu->motion_times_s().size(), 39u);
@@ -103,7 +103,7 @@ TEST(GrblMotor, CompletionByPollingStatusUntilIdle) {
     Status st = motor.MoveTo(p);
     ASSERT_TRUE(st.ok()) << st.error().ToString();
     EXPECT_EQ(emu->State(), "Idle");
-    EXPECT_NEAR(std::abs(emu->Position()[0]), p.h_deg, 0.01);
+    EXPECT_NEAR(emu->WorkPosition()[0], p.h_deg, 0.01);
   }
 }
 
@@ -189,7 +189,7 @@ TEST(GrblMotor, GarbageAndSplitLinesAreIgnored) {
     ASSERT_TRUE(st.ok()) << st.error().ToString();
   }
   EXPECT_GT(motor.ignored_lines(), 0);
-  EXPECT_NEAR(std::abs(emu->Position()[0]), 40, 0.01);
+  EXPECT_NEAR(emu->WorkPosition()[0], 40, 0.01);
 }
 
 TEST(GrblMotor, AMoveThatNeverReachesIdleTimesOutNamingThePose) {
@@ -234,7 +234,7 @@ TEST(GrblMotor, ThePortVanishingMidSessionIsReconnectedAndReHomed) {
   EXPECT_GE(emu->plug_count(), 2);
   EXPECT_GE(motor.reconnects(), 1);
   EXPECT_EQ(emu->homings(), 2);  // homed again after the reconnect
-  EXPECT_NEAR(std::abs(emu->Position()[0]), 20, 0.01);
+  EXPECT_NEAR(emu->WorkPosition()[0], 20, 0.01);
 }
 
 TEST(GrblMotor, CtrlCDuringALongMoveReturnsPromptly) {
@@ -267,7 +267,7 @@ TEST(GrblMotor, CtrlCDuringALongMoveReturnsPromptly) {
   for (int i = 0; i < 100 && emu->State() != "Idle"; ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   EXPECT_EQ(emu->State(), "Idle");
-  EXPECT_LT(std::abs(emu->Position()[0]), 45);
+  EXPECT_LT(emu->WorkPosition()[0], 45);
   EXPECT_LT(took, 3.0);
 }
 

@@ -21,8 +21,28 @@ TEST(CheckConfigCommand, AcceptsEveryShippedConfig) {
     if (e.path().extension() != ".toml") continue;
     CommandResult r = RunRig("check-config " + e.path().string());
     EXPECT_EQ(r.status, 0) << r.output;
-    EXPECT_THAT(r.output, ::testing::HasSubstr(": ok: 40 poses"));
+    EXPECT_THAT(r.output, ::testing::HasSubstr(": ok: "));
   }
+}
+
+// The full-azimuth example: 12 azimuths x 5 elevations, inside its own pose limits; the same
+// grid with the limits of a shorter arm is refused, naming both.
+TEST(CheckConfigCommand, TheFullAzimuthExampleIsValidAndItsLimitsAreWhatHoldsItsGrid) {
+  const std::string path = std::string(std::getenv("RIG_SOURCE_DIR")) + "/config/grbl-dome.toml";
+  CommandResult r = RunRig("check-config " + path);
+  EXPECT_EQ(r.status, 0) << r.output;
+  EXPECT_THAT(r.output, ::testing::HasSubstr(": ok: 60 poses"));
+  std::ifstream in(path);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string key = "h_limit_max_deg = 335";
+  ASSERT_NE(text.find(key), std::string::npos);
+  text.replace(text.find(key), key.size(), "h_limit_max_deg = 300");
+  auto bad = std::filesystem::temp_directory_path() / "rig_check_config_dome_short.toml";
+  std::ofstream(bad) << text;
+  CommandResult b = RunRig("check-config " + bad.string());
+  EXPECT_EQ(b.status, 2) << b.output;
+  EXPECT_THAT(b.output, ::testing::HasSubstr("grid 0 .. 330 leaves the motor's soft limits 0 .. 300"));
+  std::filesystem::remove(bad);
 }
 
 TEST(CheckConfigCommand, ListsEveryErrorWithLocationAndExitsTwo) {

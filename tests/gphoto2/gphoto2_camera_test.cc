@@ -332,6 +332,54 @@ count = 3
   fs::remove_all(dir);
 }
 
+// `rig devices --camera`: what the body is set to now, read from its config tree. The
+// virtual body has an aperture, a shutter speed and a battery level, and no ISO or image
+// format setting: those are said to be missing, not made up.
+TEST_F(GPhoto2Camera, ReadingsShowTheBodysCurrentSettingsFromItsConfigTree) {
+  auto cam = MakeGPhoto2Camera(VirtualBody());
+  ASSERT_TRUE(cam->Open().ok());
+  CameraSettings want;
+  want.aperture = "8";
+  ASSERT_TRUE(cam->Configure(want).ok());
+  auto speeds = cam->ShutterSpeeds();
+  ASSERT_TRUE(speeds.ok());
+  const Seconds t = (*speeds)[speeds->size() / 2];
+  ASSERT_TRUE(cam->Capture(t).ok());
+  auto readings = cam->Readings();
+  ASSERT_TRUE(readings.ok()) << readings.error().ToString();
+  std::map<std::string, CameraReading> by_what;
+  for (const auto& r : *readings) {
+    std::printf("%s: %s = '%s' (%s)\n", r.what.c_str(), r.name.c_str(), r.value.c_str(), r.label.c_str());
+    by_what[r.what] = r;
+  }
+  ASSERT_TRUE(by_what.count("aperture"));
+  EXPECT_EQ(by_what["aperture"].value, "f/8");  // what Configure set, read back
+  ASSERT_TRUE(by_what.count("shutter"));
+  auto shown = ParseShutterSpeed(by_what["shutter"].value);
+  ASSERT_TRUE(shown) << by_what["shutter"].value;
+  EXPECT_NEAR(*shown, t.count(), 1e-9);            // the speed of the last capture
+  EXPECT_FALSE(by_what.count("iso"));
+  EXPECT_FALSE(by_what.count("image format"));
+  ASSERT_TRUE(by_what.count("battery"));
+  EXPECT_FALSE(by_what["battery"].value.empty());
+  cam->Close();
+
+  const std::string dir = testing::FreshTempDir("gphoto2_devices_camera");
+  const std::string cfg = testing::WriteSimConfig(dir, fmt::format(R"([camera]
+backend = 'gphoto2'
+model = '{}'
+port = '{}'
+)", std::getenv("RIG_VUSB_MODEL"), std::getenv("RIG_VUSB_PORT")));
+  auto r = testing::RunRig("devices --camera --config " + cfg);
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("Nikon DSC D750"));
+  EXPECT_THAT(r.output, HasSubstr("aperture      f/"));  // a fresh process: the body's own
+  EXPECT_THAT(r.output, HasSubstr("image format  not offered by this body"));
+  EXPECT_THAT(r.output, HasSubstr("iso           not offered by this body"));
+  EXPECT_THAT(r.output, HasSubstr("battery"));
+  fs::remove_all(dir);
+}
+
 TEST_F(GPhoto2Camera, ABusyBodyIsRetriedWithBackOffThenGivesUpNamingTheError) {
   auto cam = MakeGPhoto2Camera(VirtualBody());  // retries 2, back-off 0.05 s doubling
   ASSERT_TRUE(cam->Open().ok());

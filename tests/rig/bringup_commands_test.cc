@@ -169,8 +169,8 @@ TEST(PtyShim, TheInstalledRigReachesTheGrblEmulatorThroughTheInstalledShim) {
   auto jog = run(preload, "jog --config " + cfg + " --home --to 20,10");
   ASSERT_EQ(jog.status, 0) << jog.output;
   EXPECT_THAT(jog.output, HasSubstr("at h 20.000 v 10.000 deg"));
-  EXPECT_NEAR((*emu)->Position()[0], 20, 0.01);
-  EXPECT_NEAR((*emu)->Position()[1], 10, 0.01);
+  EXPECT_NEAR((*emu)->WorkPosition()[0], 20, 0.01);
+  EXPECT_NEAR((*emu)->WorkPosition()[1], 10, 0.01);
   std::filesystem::remove_all(prefix);
 }
 
