@@ -45,18 +45,31 @@ int Columns() {
   return 100;
 }
 
-std::string Render(const Task& t) {
-  const double elapsed = std::chrono::duration<double>(Clock::now() - t.start).count();
+// A task's time so far, its time left (-1 unknown: from the rate of the work done in this run)
+// and its percentage.
+struct Timing {
+  double elapsed = 0, left = -1;
+  int pct = 0;
+};
+Timing TimingOf(const Task& t) {
+  Timing m;
+  m.elapsed = std::chrono::duration<double>(Clock::now() - t.start).count();
   const int64_t counted = t.done - t.done_at_start;
-  const double eta = counted > 0 && t.total > 0
-                         ? elapsed / static_cast<double>(counted) *
-                               static_cast<double>(std::max<int64_t>(0, t.total - t.done))
-                         : -1;
+  if (counted > 0 && t.total > 0)
+    m.left = m.elapsed / static_cast<double>(counted) *
+             static_cast<double>(std::max<int64_t>(0, t.total - t.done));
+  m.pct = t.total > 0 ? static_cast<int>(100 * std::min(t.done, t.total) / t.total) : 0;
+  return m;
+}
+
+std::string Render(const Task& t) {
+  const Timing m = TimingOf(t);
+  const double elapsed = m.elapsed, eta = m.left;
+  const int pct = m.pct;
   const int kWidth = 24;
   const int64_t filled = t.total > 0 ? kWidth * std::min(t.done, t.total) / t.total : 0;
   std::string bar(static_cast<size_t>(filled), '#');
   bar.resize(kWidth, '.');
-  const int pct = t.total > 0 ? static_cast<int>(100 * std::min(t.done, t.total) / t.total) : 0;
   std::string line = fmt::format("{} [{}] {:3d}% {}/{}", t.label, bar, pct, t.done, t.total);
   if (!t.detail.empty()) line += "  " + t.detail;
   line += fmt::format("  elapsed {}  ETA {}", console_internal::Clock(elapsed),
@@ -85,17 +98,11 @@ double LineEverySeconds() {
 }
 
 std::string PlainLine(const Task& t) {
-  const double elapsed = std::chrono::duration<double>(Clock::now() - t.start).count();
-  const int64_t counted = t.done - t.done_at_start;
-  const double left = counted > 0 && t.total > 0
-                          ? elapsed / static_cast<double>(counted) *
-                                static_cast<double>(std::max<int64_t>(0, t.total - t.done))
-                          : -1;
-  const int pct = t.total > 0 ? static_cast<int>(100 * std::min(t.done, t.total) / t.total) : 0;
-  std::string line = fmt::format("progress: {} {}/{} ({}%)", t.label, t.done, t.total, pct);
+  const Timing m = TimingOf(t);
+  std::string line = fmt::format("progress: {} {}/{} ({}%)", t.label, t.done, t.total, m.pct);
   if (!t.detail.empty()) line += ", " + t.detail;
-  return line + fmt::format(", {} elapsed, {} left", console_internal::Clock(elapsed),
-                            console_internal::Clock(left));
+  return line + fmt::format(", {} elapsed, {} left", console_internal::Clock(m.elapsed),
+                            console_internal::Clock(m.left));
 }
 
 void PlainLineLocked() {
