@@ -32,6 +32,8 @@ namespace {
 using ::testing::HasSubstr;
 using rig::testing::FastGrbl;
 using rig::testing::GrblConfigFor;
+using rig::testing::Quiet;
+using rig::testing::SmallSimConfigWithGrbl;
 using rig::testing::StartGrbl;
 using ::testing::Not;
 using rig::testing::MposX;
@@ -39,24 +41,6 @@ using rig::testing::RawPty;
 using Clock = std::chrono::steady_clock;
 
 const bool kPtyShim = rig::testing::PtyShimLinked();
-
-Config SmallSimConfigWithGrbl(const std::string& port) {
-  ConfigResult cr = LoadConfig(testing::SourceDir() + "/config/sim.toml");
-  EXPECT_TRUE(cr.ok());
-  Config config = cr.config;
-  config.sim.width = 48;
-  config.sim.height = 36;
-  config.bracket.count = 2;
-  config.motor = GrblConfigFor(port);
-  return config;
-}
-
-CaptureOptions Quiet() {
-  CaptureOptions o;
-  o.settle_scale = 0;
-  o.progress = false;
-  return o;
-}
 
 // A machine without limit switches ($22=0, home_on_start = false): a session stopped by a
 // fault is resumed without homing, on the real driver, and completes.

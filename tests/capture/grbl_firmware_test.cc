@@ -31,6 +31,8 @@ using ::testing::HasSubstr;
 using ::testing::Not;
 using rig::testing::FastGrbl;
 using rig::testing::GrblConfigFor;
+using rig::testing::Quiet;
+using rig::testing::SmallSimConfigWithGrbl;
 using rig::testing::Mpos;
 using rig::testing::RawPty;
 using rig::testing::StartGrbl;
@@ -145,24 +147,6 @@ TEST(GrblFirmware, ASoftLimitAlarmAnswersNothingNotEvenAStatusReportUntilAReset)
 }
 
 // ---- The driver at connect: the grid against the firmware's travel ----------------------
-
-Config SmallSimConfigWithGrbl(const std::string& port) {
-  ConfigResult cr = LoadConfig(testing::SourceDir() + "/config/sim.toml");
-  EXPECT_TRUE(cr.ok());
-  Config config = cr.config;
-  config.sim.width = 48;
-  config.sim.height = 36;
-  config.bracket.count = 2;
-  config.motor = GrblConfigFor(port);
-  return config;
-}
-
-CaptureOptions Quiet() {
-  CaptureOptions o;
-  o.settle_scale = 0;
-  o.progress = false;
-  return o;
-}
 
 // The simulated grid runs h 0..90; $130=60 with the homed work offset allows h -1..59.
 TEST(GrblFirmware, AGridOutsideTheFirmwaresTravelIsRefusedBeforeAnythingMoves) {

@@ -8,9 +8,11 @@
 
 #include <gtest/gtest.h>
 
+#include "capture/daemon/daemon.h"
 #include "config/config.h"
 #include "sim/grbl_emulator.h"
 #include "sim/maestro_emulator.h"
+#include "tests/support/run_rig.h"
 
 namespace rig::testing {
 
@@ -74,6 +76,26 @@ inline std::unique_ptr<MaestroEmulator> StartMaestro(MaestroEmulatorOptions o,
   auto emu = StartMaestroEmulator(o, link);
   EXPECT_TRUE(emu.ok()) << emu.error().ToString();
   return emu.ok() ? std::move(emu).value() : nullptr;
+}
+
+// The simulated rig at 48x36, two exposures per pose, driving a GRBL controller on `port`.
+inline Config SmallSimConfigWithGrbl(const std::string& port) {
+  ConfigResult cr = LoadConfig(SourceDir() + "/config/sim.toml");
+  EXPECT_TRUE(cr.ok());
+  Config config = cr.config;
+  config.sim.width = 48;
+  config.sim.height = 36;
+  config.bracket.count = 2;
+  config.motor = GrblConfigFor(port);
+  return config;
+}
+
+// A capture without settling waits or progress bars.
+inline CaptureOptions Quiet() {
+  CaptureOptions o;
+  o.settle_scale = 0;
+  o.progress = false;
+  return o;
 }
 
 }  // namespace rig::testing
