@@ -8,6 +8,7 @@
 
 #include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "capture/plan/bracket.h"
 #include "config/log.h"
@@ -395,6 +396,45 @@ Result<CapturedFrame> SimCamera::Capture(Seconds exposure) {
   if (!raw_only_) frame.files.push_back({sim_.camera.format, std::move(bytes)});
   if (capture_raw_) frame.files.push_back({"dng", std::move(raw_bytes)});
   return frame;
+}
+
+Result<CapturedFile> SimCamera::CapturePreview() {
+  std::lock_guard<std::mutex> lock(mu_);
+  if (!open_) return DeviceError(ErrorCode::kDevice, "preview before Open()");
+  const SimWorldState state = world_->State();
+  cv::Mat radiance = state.lamp_on ? scene_.Radiance(LightDirection(state.h_deg, state.v_deg, light_frame_), lamp_rgb_)
+                                   : cv::Mat::zeros(scene_.height(), scene_.width(), CV_32FC3);
+  // Auto exposure on the brightest channel's 99th percentile.
+  std::vector<float> brightest(radiance.total());
+  const auto* px = radiance.ptr<cv::Vec3f>();
+  for (size_t i = 0; i < brightest.size(); ++i)
+    brightest[i] = std::max({px[i][0], px[i][1], px[i][2]});
+  auto p99 = brightest.begin() + static_cast<std::ptrdiff_t>(brightest.size() * 99 / 100);
+  std::nth_element(brightest.begin(), p99, brightest.end());
+  Seconds t = speeds_.back();
+  if (*p99 > 0) {
+    const double want = 0.8 * sim_.camera.full_well / (sim_.camera.gain * *p99);
+    t = std::clamp(Seconds(want), speeds_.front(), speeds_.back());
+  }
+  const auto micro = [](double deg) { return static_cast<uint64_t>(std::llround(deg * 1e6)); };
+  const uint64_t noise_seed =
+      SplitMix(SplitMix(SplitMix(static_cast<uint64_t>(sim_.seed) ^ 0x9e3779b97f4a7c15ull) ^ micro(state.h_deg)) ^
+               micro(state.v_deg));
+  cv::Mat image = Expose(radiance, t, noise_seed);
+  const int long_side = std::max(image.cols, image.rows);
+  if (long_side > kPreviewLongSide) {
+    const double f = static_cast<double>(kPreviewLongSide) / long_side;
+    cv::Mat small;
+    cv::resize(image, small, cv::Size(), f, f, cv::INTER_AREA);
+    image = small;
+  }
+  CapturedFile file{"jpg", {}};
+  try {
+    cv::imencode(".jpg", image, file.bytes, {cv::IMWRITE_JPEG_QUALITY, 85});
+  } catch (const cv::Exception& e) {
+    return DeviceError(ErrorCode::kInternal, std::string("preview encoding failed: ") + e.what());
+  }
+  return file;
 }
 
 SimCamera::Stats SimCamera::stats() const {

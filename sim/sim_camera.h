@@ -120,6 +120,12 @@ class SimCamera final : public Camera {
   // shutter opens: a capture while the arm moves, with the lamp off or during its warm-up
   // is counted in the world's violations (and the lamp-off frame is dark).
   Result<CapturedFrame> Capture(Seconds exposure) override;
+  // Live view: the world as it is now, exposed automatically (the brightest 1% of the
+  // brightest channel at 80% of full well, within the offered shutter speeds), at most
+  // kPreviewLongSide pixels on the long side, JPEG. Not a capture: no fault, counter or
+  // latency applies, and its noise is drawn from (seed, pose) alone.
+  Result<CapturedFile> CapturePreview() override;
+  static constexpr int kPreviewLongSide = 640;
 
   // The 8-bit BGR image of `radiance` (CV_32FC3, scene units) exposed for `exposure`, with
   // noise drawn from `noise_seed`: the camera model without faults, latency or counters.

@@ -62,6 +62,13 @@ class Camera {
   // The body's current ISO, aperture, shutter speed, image format and battery level, each
   // that it has (after Open). A camera without a settings tree (the simulator) has none.
   virtual Result<std::vector<CameraReading>> Readings() { return std::vector<CameraReading>{}; }
+
+  // One live-view frame for framing and focus, as `gphoto2 --capture-preview` takes it: a
+  // small JPEG at the body's own exposure, not stored on the card, not one of the session's
+  // frames (after Open). A body without live view answers kUnsupported, naming itself.
+  virtual Result<CapturedFile> CapturePreview() {
+    return MakeError(ErrorCode::kUnsupported, Describe(), "this camera has no preview (live view)");
+  }
 };
 
 }  // namespace rig

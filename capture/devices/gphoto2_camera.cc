@@ -115,6 +115,35 @@ class GPhoto2Camera final : public Camera {
     context_ = nullptr;
   }
 
+  Result<CapturedFile> CapturePreview() override {
+    if (!camera_) return MakeError(ErrorCode::kDevice, Describe(), "preview before Open()");
+    CameraFile* file = nullptr;
+    gp_file_new(&file);
+    Arm();
+    const int rc = gp_camera_capture_preview(camera_, file, context_);
+    if (rc < 0) {
+      gp_file_unref(file);
+      Error e = Failure(rc, "capturing a preview (live view)");
+      if (rc == GP_ERROR_NOT_SUPPORTED) {
+        e.code = ErrorCode::kUnsupported;
+        e.message += ": libgphoto2 offers no live view for this body; frame and focus with "
+                     "`rig shot --exposure S --save FILE` instead";
+      }
+      return e;
+    }
+    const char* data = nullptr;
+    const char* mime = nullptr;
+    unsigned long size = 0;
+    gp_file_get_data_and_size(file, &data, &size);
+    gp_file_get_mime_type(file, &mime);
+    CapturedFile out;
+    out.bytes.assign(reinterpret_cast<const uint8_t*>(data), reinterpret_cast<const uint8_t*>(data) + size);
+    const std::string type = mime ? mime : "";
+    out.extension = type == "image/png" ? "png" : type == "image/tiff" ? "tif" : "jpg";
+    gp_file_unref(file);
+    return out;
+  }
+
   Result<std::vector<CameraReading>> Readings() override {
     // The names libgphoto2's ptp2 driver (and others) give these settings, first found wins.
     static const std::vector<std::pair<const char*, std::vector<const char*>>> kWanted = {

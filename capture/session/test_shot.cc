@@ -2,6 +2,7 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "capture/devices/signals.h"
 #include "capture/plan/bracket.h"
 #include "capture/session/session_store.h"
 
@@ -42,7 +43,81 @@ Result<CapturedFrame> CaptureLit(Camera& camera, Lamp& lamp, Seconds exposure, b
   return frame;
 }
 
+// The previews with the camera open and the lamp lit; the last preview's file in `last`.
+Result<std::vector<Preview>> PreviewLoop(Camera& camera, const PreviewRequest& request,
+                                         const std::function<void(const Preview&)>& on_preview,
+                                         CapturedFile* last) {
+  std::vector<Preview> out;
+  auto next = std::chrono::steady_clock::now();
+  for (int i = 1; request.count == 0 || i <= request.count; ++i) {
+    if (i > 1) {
+      next += std::chrono::duration_cast<std::chrono::steady_clock::duration>(request.every);
+      const auto wait = next - std::chrono::steady_clock::now();
+      if (wait > wait.zero() && !SleepUnlessStopped(std::chrono::duration_cast<Seconds>(wait))) break;
+    }
+    if (StopRequested()) break;
+    RIG_ASSIGN_OR_RETURN(*last, camera.CapturePreview());
+    cv::Mat img = cv::imdecode(last->bytes, cv::IMREAD_COLOR);
+    if (img.empty())
+      return MakeError(ErrorCode::kDevice, camera.Describe(), "preview {} ({} bytes, .{}) cannot be decoded", i,
+                       last->bytes.size(), last->extension);
+    Preview p;
+    p.index = i;
+    p.width = img.cols;
+    p.height = img.rows;
+    RIG_ASSIGN_OR_RETURN(p.focus, AnalyzeFocus(img));
+    // The body chose the exposure: only the fractions of the statistics are used.
+    RIG_ASSIGN_OR_RETURN(ExposureStats stats, AnalyzeExposure(img, 1.0));
+    p.clipped_fraction = stats.clipped_fraction;
+    p.dark_fraction = stats.dark_fraction;
+    out.push_back(p);
+    if (on_preview) on_preview(p);
+  }
+  return out;
+}
+
 }  // namespace
+
+Result<std::vector<Preview>> TakePreviews(const Config& config, Camera& camera, Lamp& lamp, Motor& motor,
+                                          const PreviewRequest& request,
+                                          const std::function<void(const Preview&)>& on_preview) {
+  if (!request.save.empty() && fs::exists(request.save))
+    return MakeError(ErrorCode::kInvalidInput, request.save, "exists; nothing is overwritten");
+  if (request.count < 0) return MakeError(ErrorCode::kInvalidInput, "preview", "count must be >= 0");
+  if (request.pose) {
+    if (const std::string why = SoftLimitViolation(config.motor, *request.pose); !why.empty())
+      return MakeError(ErrorCode::kInvalidInput, "pose " + request.pose->Name(), "{}", why);
+    RIG_TRY(MoveArm(motor, *request.pose));
+  }
+  const CameraConfig& cc = config.camera;
+  Status st = camera.Open();
+  if (st.ok()) {
+    auto applied = camera.Configure({cc.iso, cc.aperture, cc.white_balance, cc.capture_target, false});
+    if (!applied.ok()) st = applied.error();
+  }
+  if (!st.ok()) {
+    camera.Close();
+    return st.error().Within(camera.Describe());
+  }
+  Status lit = lamp.Open();
+  if (!lit.ok()) {
+    camera.Close();
+    return lit.error().Within(lamp.Describe());
+  }
+  if (request.lamp_on) lit = lamp.On();
+  CapturedFile last;
+  Result<std::vector<Preview>> previews =
+      lit.ok() ? PreviewLoop(camera, request, on_preview, &last)
+               : Result<std::vector<Preview>>(lit.error().Within(lamp.Describe()));
+  Status off = lamp.Off();
+  lamp.Close();
+  camera.Close();
+  if (!previews.ok()) return previews.error();
+  if (!off.ok()) return off.error().Within(lamp.Describe());
+  if (!request.save.empty() && !previews->empty())
+    RIG_TRY(WriteFileAtomic(request.save, std::span<const uint8_t>(last.bytes), /*overwrite=*/false));
+  return previews;
+}
 
 Result<TestShot> TakeTestShot(const Config& config, Camera& camera, Lamp& lamp, Motor& motor,
                               const TestShotRequest& request) {

@@ -4,6 +4,7 @@
 // (process/hdr/exposure_advice.h).
 #pragma once
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -15,6 +16,7 @@
 #include "config/config.h"
 #include "config/result.h"
 #include "process/hdr/exposure_advice.h"
+#include "process/hdr/focus.h"
 
 namespace rig {
 
@@ -38,5 +40,29 @@ struct TestShot {
 // with the capture's error after the lamp is off (the caller checks StopRequested()).
 Result<TestShot> TakeTestShot(const Config& config, Camera& camera, Lamp& lamp, Motor& motor,
                               const TestShotRequest& request);
+
+// `rig shot --preview`: live-view frames for framing and focus (Camera::CapturePreview), at the
+// body's own exposure, with the lamp on (unless asked not) for as long as they last.
+struct PreviewRequest {
+  std::optional<Pose> pose;  // checked against the motor's soft limits before anything moves
+  bool lamp_on = true;
+  std::string save;          // write the last preview here (refused if it exists); empty: no
+  int count = 1;             // previews to take; 0: until a stop request (Ctrl-C)
+  Seconds every{0.5};        // between the starts of two previews
+};
+
+struct Preview {
+  int index = 0;             // from 1
+  int width = 0, height = 0;
+  FocusStats focus;
+  double clipped_fraction = 0, dark_fraction = 0;  // as ExposureStats counts them
+};
+
+// Errors name the device, the file or the pose; the lamp is off again whatever happened. A
+// stop request ends the previews without an error: the ones taken are returned (and the last
+// saved). `on_preview` is called as each one arrives.
+Result<std::vector<Preview>> TakePreviews(const Config& config, Camera& camera, Lamp& lamp, Motor& motor,
+                                          const PreviewRequest& request,
+                                          const std::function<void(const Preview&)>& on_preview = {});
 
 }  // namespace rig

@@ -459,3 +459,28 @@ TEST(ShutterSpeedLabels, ParseByValueWhateverTheBodysNotation) {
 
 }  // namespace
 }  // namespace rig
+
+namespace rig {
+namespace {
+
+// libgphoto2 2.5.34's virtual body declares no live-view operation, so its ptp2 driver answers
+// the preview capture with GP_ERROR_NOT_SUPPORTED: rig says so, naming the body, and offers
+// the test shot instead; the body still captures afterwards.
+TEST(GPhoto2Preview, ABodyWithoutLiveViewIsNamedAndStillCaptures) {
+  ASSERT_NE(std::getenv("RIG_VUSB_PORT"), nullptr) << "run through scripts/with-vusb-camera.sh (ctest does)";
+  auto cam = MakeGPhoto2Camera(VirtualBody());
+  ASSERT_TRUE(cam->Open().ok());
+  auto p = cam->CapturePreview();
+  ASSERT_FALSE(p.ok()) << "the virtual body now offers live view: test the JPEG instead";
+  EXPECT_EQ(p.error().code, ErrorCode::kUnsupported) << p.error().ToString();
+  EXPECT_THAT(p.error().ToString(), HasSubstr("Nikon DSC D750"));
+  EXPECT_THAT(p.error().ToString(), HasSubstr("rig shot --exposure"));
+  auto speeds = cam->ShutterSpeeds();
+  ASSERT_TRUE(speeds.ok());
+  auto frame = cam->Capture(speeds->back());
+  EXPECT_TRUE(frame.ok()) << frame.error().ToString();
+  cam->Close();
+}
+
+}  // namespace
+}  // namespace rig

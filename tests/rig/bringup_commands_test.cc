@@ -122,6 +122,48 @@ TEST(ShotCommand, ReportsClippingAndDarknessAndSuggestsABracketThatCoversThem) {
   EXPECT_EQ(Number(shorter.output, "clipped \\(a channel >= 250\\): ([0-9.]+)%"), 0);
 }
 
+// Live view for framing and focus: previews at the body's exposure, each with its sharpness;
+// the last one saved (never over a file); Ctrl-C ends an endless preview cleanly.
+TEST(ShotCommand, PreviewsPrintTheirSharpnessSaveTheLastAndEndOnCtrlC) {
+  const std::string dir = testing::FreshTempDir("shot_preview");
+  auto r = RunRig("shot --dry-run --preview --repeat 2 --every 0.05 --save " + dir + "/p.jpg");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("preview 1: 320x240  focus "));
+  EXPECT_THAT(r.output, HasSubstr("preview 2: 320x240  focus "));
+  EXPECT_THAT(r.output, Not(HasSubstr("preview 3:")));
+  EXPECT_GT(Number(r.output, "preview 2: 320x240  focus ([0-9.]+)"), 10) << r.output;
+  std::ifstream jpeg(dir + "/p.jpg", std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(jpeg)), {});
+  ASSERT_GE(bytes.size(), 3u);
+  EXPECT_EQ(bytes.substr(0, 3), "\xFF\xD8\xFF");
+  auto again = RunRig("shot --dry-run --preview --save " + dir + "/p.jpg");
+  EXPECT_NE(again.status, 0);
+  EXPECT_THAT(again.output, HasSubstr("exists"));
+  auto both = RunRig("shot --dry-run --preview --exposure 0.1");
+  EXPECT_EQ(both.status, 2);
+  auto neither = RunRig("shot --dry-run");
+  EXPECT_EQ(neither.status, 2);
+  EXPECT_THAT(neither.output, HasSubstr("--exposure S or --preview is required"));
+  // Ambient only: far darker than lit.
+  auto unlit = RunRig("shot --dry-run --preview --no-lamp");
+  ASSERT_EQ(unlit.status, 0) << unlit.output;
+  EXPECT_GT(Number(unlit.output, "dark ([0-9.]+)%"), 20) << unlit.output;
+  EXPECT_LT(Number(r.output, "dark ([0-9.]+)%"), 5) << r.output;
+
+  const std::string log = dir + "/log.txt";
+  pid_t pid = testing::SpawnRig({"shot", "--dry-run", "--preview", "--repeat", "0", "--every", "0.05"}, log);
+  std::string text;
+  for (int i = 0; i < 500 && text.find("preview 3:") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    std::ifstream in(log);
+    text.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  ASSERT_THAT(text, HasSubstr("preview 3:"));
+  kill(pid, SIGINT);
+  EXPECT_EQ(testing::WaitRig(pid), 130);
+  std::filesystem::remove_all(dir);
+}
+
 // `cmake --install` into a fresh prefix; the installed rig homes and jogs the GRBL emulator
 // through the installed shim (without it, libserialport refuses the pseudo-terminal).
 TEST(PtyShim, TheInstalledRigReachesTheGrblEmulatorThroughTheInstalledShim) {

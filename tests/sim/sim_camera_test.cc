@@ -368,3 +368,55 @@ TEST(SimCamera, RendersTheWorldsPoseThroughTheLightFrame) {
 
 }  // namespace
 }  // namespace rig
+
+namespace rig {
+namespace {
+
+// Live view: auto-exposed (the brightest 1% near 80% of full well: bright but hardly
+// clipped), at most kPreviewLongSide on the long side, deterministic, and not a capture.
+TEST(SimCameraPreview, IsAutoExposedSmallDeterministicAndNotCounted) {
+  Config c = SmallConfig();
+  c.sim.width = 1280;
+  c.sim.height = 960;
+  c.sim.camera.fail_capture_at = {1};  // a capture fault must not touch the preview
+  Rig r = MakeRig(c);
+  auto a = r.camera->CapturePreview();
+  ASSERT_TRUE(a.ok()) << a.error().ToString();
+  auto b = r.camera->CapturePreview();
+  ASSERT_TRUE(b.ok());
+  EXPECT_EQ(a->bytes, b->bytes);
+  EXPECT_EQ(a->extension, "jpg");
+  cv::Mat img = cv::imdecode(a->bytes, cv::IMREAD_COLOR);
+  ASSERT_EQ(img.cols, SimCamera::kPreviewLongSide);
+  EXPECT_EQ(img.rows, SimCamera::kPreviewLongSide * 3 / 4);
+  std::vector<uint8_t> brightest;
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x) {
+      const auto p = img.at<cv::Vec3b>(y, x);
+      brightest.push_back(std::max({p[0], p[1], p[2]}));
+    }
+  std::sort(brightest.begin(), brightest.end());
+  const int p99 = brightest[brightest.size() * 99 / 100];
+  EXPECT_GT(p99, 200);  // the filmic curve puts 80% of full well high, below the clip
+  EXPECT_LT(p99, 255);
+  EXPECT_EQ(r.camera->stats().attempts, 0);
+  EXPECT_EQ(r.camera->stats().captures, 0);
+
+  r.world->SetLamp(false);
+  auto dark = r.camera->CapturePreview();
+  ASSERT_TRUE(dark.ok());
+  cv::Mat d = cv::imdecode(dark->bytes, cv::IMREAD_GRAYSCALE);
+  EXPECT_LT(cv::mean(d)[0], 10);
+}
+
+TEST(SimCameraPreview, IsRefusedBeforeOpen) {
+  auto world = std::make_shared<SimWorld>();
+  auto cam = SimCamera::Create(SmallConfig(), world);
+  ASSERT_TRUE(cam.ok());
+  auto p = (*cam)->CapturePreview();
+  ASSERT_FALSE(p.ok());
+  EXPECT_NE(p.error().ToString().find("sim camera"), std::string::npos) << p.error().ToString();
+}
+
+}  // namespace
+}  // namespace rig
