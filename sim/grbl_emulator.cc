@@ -285,7 +285,8 @@ std::array<double, 3> GrblEmulator::HomedPosition() const {
   const int dir = static_cast<int>(Setting(23));
   for (int i = 0; i < 3; ++i) {
     if (!(cycle & (1 << i))) continue;
-    p[i] = (dir & (1 << i)) ? -Setting(130 + i) + Setting(27) : -Setting(27);
+    if (options_.homing_force_set_origin) p[i] = 0;
+    else p[i] = (dir & (1 << i)) ? -Setting(130 + i) + Setting(27) : -Setting(27);
   }
   return p;
 }
@@ -316,9 +317,14 @@ std::pair<double, int> GrblEmulator::HomingPlan() const {
 }
 
 bool GrblEmulator::OutsideTravel(const std::array<double, 3>& machine) const {
-  // system_check_travel_limits(): max_travel is stored negative, the space is -$13n .. 0.
-  for (int i = 0; i < 3; ++i)
-    if (machine[i] > 0 || machine[i] < -Setting(130 + i)) return true;
+  // system_check_travel_limits(): max_travel is stored negative, the space is -$13n .. 0;
+  // with HOMING_FORCE_SET_ORIGIN, 0 .. $13n for an axis whose $23 bit is set.
+  const int dir = static_cast<int>(Setting(23));
+  for (int i = 0; i < 3; ++i) {
+    const bool positive = options_.homing_force_set_origin && (dir & (1 << i));
+    const double lo = positive ? 0 : -Setting(130 + i), hi = positive ? Setting(130 + i) : 0;
+    if (machine[i] > hi || machine[i] < lo) return true;
+  }
   return false;
 }
 
@@ -601,7 +607,7 @@ std::string GrblEmulator::ExecuteSystem(const std::string& line) {
   }
   if (line == "$I") {
     SendLine("[VER:1.1h.20190830:]");
-    SendLine("[OPT:V,15,128]");
+    SendLine(options_.homing_force_set_origin ? "[OPT:VZ,15,128]" : "[OPT:V,15,128]");
     return "ok";
   }
   if (line == "$N") {
@@ -657,11 +663,20 @@ std::string GrblEmulator::ExecuteGcode(const std::string& line) {
   while (i < line.size()) {
     char letter = line[i++];
     if (letter < 'A' || letter > 'Z') return "error:1";
-    const char* start = line.c_str() + i;
-    char* end = nullptr;
-    double value = std::strtod(start, &end);
-    if (end == start || !std::isfinite(value)) return "error:2";
-    i += static_cast<size_t>(end - start);
+    // gcode.c's read_float(): an optional sign, digits and one decimal point; no exponent and
+    // no hexadecimal (strtod would read "G0X5" as G5, 0X5 being hex).
+    size_t j = i;
+    if (j < line.size() && (line[j] == '-' || line[j] == '+')) ++j;
+    bool digits = false, point = false;
+    for (; j < line.size(); ++j) {
+      if (std::isdigit(static_cast<unsigned char>(line[j]))) digits = true;
+      else if (line[j] == '.' && !point) point = true;
+      else break;
+    }
+    if (!digits) return "error:2";
+    const double value = std::strtod(line.substr(i, j - i).c_str(), nullptr);
+    if (!std::isfinite(value)) return "error:2";
+    i = j;
     if (letter == 'G') {
       if (value != std::floor(value)) return "error:20";  // G38.2, G59.1, ...: not emulated
       gcodes.push_back(static_cast<int>(value));

@@ -100,6 +100,11 @@ struct GrblEmulatorOptions {
   // with no Z switch $H searches Z for 1.5 x $132, ends in ALARM:9 and X, Y never move.
   // false: the two-axis build, HOMING_CYCLE_0 = X|Y, no Z cycle (docs/rig-setup.md).
   bool stock_homing_cycle = false;
+  // HOMING_FORCE_SET_ORIGIN in config.h: after homing every homed axis is at machine 0, and
+  // the travel lies on the side the axis homed from: 0 .. $13n when it homed towards its
+  // negative end ($23 bit set), -$13n .. 0 otherwise (system_check_travel_limits). $I lists
+  // the build option as 'Z'.
+  bool homing_force_set_origin = false;
   // The machine: which axes have a limit switch (bit 0 X, 1 Y, 2 Z), and which of those sit
   // at their axis's negative end (the rig's 0 deg end). An axis homes towards its negative
   // end when its $23 bit is set, towards the positive end when clear (limits.c); homing away
@@ -131,11 +136,11 @@ struct GrblEmulatorOptions {
 
 // GRBL 1.1h as seen from its serial port: banner, line protocol with ok/error:N, status
 // reports, planner with trapezoidal motion, G4 dwell, $H homing with limit switches (the
-// cycles of the build, direction by $23, machine space negative after homing as without
-// HOMING_FORCE_SET_ORIGIN), the G54 work offset (G10 L2/L20 P1, $#, WCO), soft limits ($20:
+// cycles of the build, direction by $23, machine space negative after homing, or at the
+// origin with HOMING_FORCE_SET_ORIGIN), the G54 work offset (G10 L2/L20 P1, $#, WCO), soft limits ($20:
 // ALARM:2, then silent, not even '?', until a reset), alarm lock, feed hold and resume, soft
 // reset, $$ settings. Not emulated: arcs, jogging, overrides, probing, spindle, coolant, check
-// mode, G92, G55-G59, startup blocks, HOMING_FORCE_SET_ORIGIN.
+// mode, G92, G55-G59, startup blocks.
 class GrblEmulator final : public PtyEmulator {
  public:
   explicit GrblEmulator(GrblEmulatorOptions options = {});

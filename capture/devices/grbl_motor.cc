@@ -241,6 +241,13 @@ GrblMotor::Line GrblMotor::Classify(const std::string& text) {
       g54_ = offset;
     if (text.rfind("[G92:", 0) == 0 && ParseTriple(std::string_view(text).substr(5, text.size() - 6), &offset))
       g92_ = offset;
+    // $I's build options (report.c): the letters before the first comma; 'Z' is
+    // HOMING_FORCE_SET_ORIGIN.
+    if (text.rfind("[OPT:", 0) == 0) {
+      const std::string letters = text.substr(5, text.find(',') == std::string::npos ? std::string::npos
+                                                                                       : text.find(',') - 5);
+      force_set_origin_ = letters.find('Z') != std::string::npos;
+    }
     Log("motion")->debug("grbl port={} message='{}'", selector_.Describe(), text);
   } else if (text.front() == '$' && text.find('=') != std::string::npos) {
     int n = 0;
@@ -414,6 +421,21 @@ Status GrblMotor::ReadSettings() {
   return Ok();
 }
 
+Status GrblMotor::ReadBuildOptions() {
+  force_set_origin_ = false;
+  RIG_TRY(Queue("$I"));
+  RIG_ASSIGN_OR_RETURN(Line r, AwaitResponse(Seconds(config_.reply_timeout_s), OnAlarm::kRecord));
+  if (r.kind == Kind::kError) {
+    Log("motion")->warn("grbl port={} cannot read the build options ($I): error:{} ({}); taken as a build "
+                        "without HOMING_FORCE_SET_ORIGIN", selector_.Describe(), r.code, GrblErrorMeaning(r.code));
+    return Ok();
+  }
+  Log("motion")->info("grbl port={} HOMING_FORCE_SET_ORIGIN={}", selector_.Describe(),
+                      force_set_origin_ ? "yes ($I lists Z): travel from machine 0 on the homed side"
+                                        : "no: machine space negative after homing");
+  return Ok();
+}
+
 Status GrblMotor::ReadOffsets() {
   offsets_known_ = false;
   RIG_TRY(Queue("$#"));
@@ -447,8 +469,10 @@ Pose GrblMotor::ToPose(const std::array<double, 3>& work) const {
 std::string GrblMotor::TravelViolation(const Pose& pose) const {
   auto get = [&](int n) { auto it = settings_.find(n); return it == settings_.end() ? NAN : it->second; };
   // Without homing ($22=0) the firmware's machine space starts wherever the arm stood at
-  // power-up; only after homing does it span -$13n .. 0 (limits.c, system.c).
+  // power-up; only after homing does it span -$13n .. 0 (limits.c, system.c), or with
+  // HOMING_FORCE_SET_ORIGIN 0 .. $13n for an axis homed towards its negative end ($23 bit).
   if (get(22) != 1 || !offsets_known_) return "";
+  const int dir = std::isfinite(get(23)) ? static_cast<int>(get(23)) : 0;
   const std::array<double, 3> work = ToWork(pose);
   const double upd = config_.grbl.units_per_degree;
   for (auto [name, index] : {std::pair{"h", h_index_}, std::pair{"v", v_index_}}) {
@@ -456,18 +480,21 @@ std::string GrblMotor::TravelViolation(const Pose& pose) const {
     if (!std::isfinite(travel) || travel <= 0) continue;
     const double offset = g54_[index] + g92_[index];
     const double machine = work[index] + offset;
-    if (machine <= kPositionToleranceUnits && machine >= -travel - kPositionToleranceUnits) continue;
+    const bool positive = force_set_origin_ && (dir & (1 << index));
+    const double lo = positive ? 0 : -travel, hi = positive ? travel : 0;
+    if (machine <= hi + kPositionToleranceUnits && machine >= lo - kPositionToleranceUnits) continue;
     const std::string axis = index == h_index_ ? config_.grbl.h_axis : config_.grbl.v_axis;
     const double deg = index == h_index_ ? pose.h_deg : pose.v_deg;
     const double rig_min = index == h_index_ ? config_.h_limit_min_deg : config_.v_limit_min_deg;
     const double rig_max = index == h_index_ ? config_.h_limit_max_deg : config_.v_limit_max_deg;
     return fmt::format(
         "{} = {:g} deg is outside the firmware's travel: work {}{:.3f} + work offset {:.3f} (G54 + G92, $#) "
-        "= machine {}{:.3f}, but ${}={:g} allows machine {}{:g} .. 0 after homing, so {} can only be "
+        "= machine {}{:.3f}, but ${}={:g} allows machine {}{:g} .. {:g} after homing{}, so {} can only be "
         "{:.3f} .. {:.3f} deg; the rig's pose limits allow {:g} .. {:g} deg ({}_limit_min_deg, "
         "{}_limit_max_deg). {}",
-        name, deg, axis, work[index], offset, axis, machine, 130 + index, travel, axis, -travel, name,
-        (-travel - offset) / upd, -offset / upd, rig_min, rig_max, name, name,
+        name, deg, axis, work[index], offset, axis, machine, 130 + index, travel, axis, lo, hi,
+        positive ? " (HOMING_FORCE_SET_ORIGIN, homed towards negative)" : "", name, (lo - offset) / upd,
+        (hi - offset) / upd, rig_min, rig_max, name, name,
         get(20) == 1 ? "GRBL would raise ALARM:2 (soft limit, $20=1) and then answer nothing until a reset"
                      : "the arm would run past its travel ($20=0: GRBL does not check)");
   }
@@ -505,6 +532,7 @@ Status GrblMotor::Open() {
     RIG_TRY(WaitForBannerOrReset());
     RIG_ASSIGN_OR_RETURN(GrblStatus s, QueryStatus());
     RIG_TRY(ReadSettings());
+    RIG_TRY(ReadBuildOptions());
     RIG_TRY(ReadOffsets());
     Log("motion")->info("grbl open port={} device={} state={}", selector_.Describe(), port_->device(),
                         s.state);
@@ -865,6 +893,7 @@ Status GrblMotor::Reconnect() {
     bool was_reset = false;
     if (st.ok()) st = ProbeAfterReopen(&was_reset);
     if (st.ok()) st = ReadSettings();
+    if (st.ok()) st = ReadBuildOptions();
     if (st.ok()) st = ReadOffsets();
     if (st.ok()) {
       st = AfterReconnect(was_reset);

@@ -88,6 +88,7 @@ class GrblMotor final : public Motor {
   Result<Line> AwaitResponse(Seconds timeout, OnAlarm on_alarm, bool interruptible = true);
   Result<GrblStatus> QueryStatus(bool interruptible = true);
   Status ReadSettings();
+  Status ReadBuildOptions();  // $I: HOMING_FORCE_SET_ORIGIN
   Status ReadOffsets();  // $#: G54 and G92
   // The one mapping of rig angles to the controller's work coordinates and back.
   std::array<double, 3> ToWork(const Pose& pose) const;
@@ -122,6 +123,7 @@ class GrblMotor final : public Motor {
   std::array<double, 3> wco_{};
   std::array<double, 3> g54_{}, g92_{};
   bool offsets_known_ = false;
+  bool force_set_origin_ = false;  // $I lists 'Z' (HOMING_FORCE_SET_ORIGIN)
   std::map<int, double> settings_;
   std::optional<Pose> last_pose_;
   std::string fault_;

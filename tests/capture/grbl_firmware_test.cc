@@ -234,6 +234,69 @@ TEST(GrblFirmware, AJogInsideTheRigsLimitsButOutsideTheFirmwaresIsRefusedWithBot
   ASSERT_TRUE(motor.MoveTo({0, 0}).ok());  // still answering
 }
 
+// A build with HOMING_FORCE_SET_ORIGIN ($I lists 'Z') is at machine 0 after homing towards
+// its negative end and travels 0 .. $13n (system_check_travel_limits): the driver reads the
+// option and checks poses on that side; the same work offset on a stock build is refused.
+TEST(GrblFirmware, AForceSetOriginBuildTravelsOnThePositiveSideAndTheDriverKnows) {
+  for (bool force : {true, false}) {
+    GrblEmulatorOptions o = Arm();
+    o.settings[20] = 1;
+    o.homing_force_set_origin = force;
+    o.g54 = std::array<double, 3>{0, 0, 0};  // work = machine
+    auto emu = StartGrbl(o);
+    ASSERT_TRUE(emu);
+    GrblMotor motor(GrblConfigFor(emu->path()));
+    ASSERT_TRUE(motor.Open().ok());
+    ASSERT_TRUE(motor.Home().ok());
+    if (force) {
+      EXPECT_NEAR(emu->Position()[0], 0, 1e-3);
+      ASSERT_TRUE(motor.MoveTo({30, 10}).ok());
+      const int moves = emu->moves();
+      Status st = motor.MoveTo({-5, 10});
+      ASSERT_FALSE(st.ok());
+      EXPECT_THAT(st.error().ToString(), HasSubstr("machine X0 .. 100 after homing (HOMING_FORCE_SET_ORIGIN"));
+      EXPECT_EQ(emu->moves(), moves);
+      EXPECT_EQ(emu->State(), "Idle");
+    } else {
+      Status st = motor.MoveTo({30, 10});
+      ASSERT_FALSE(st.ok());
+      EXPECT_THAT(st.error().ToString(), HasSubstr("machine X-100 .. 0 after homing,"));
+      EXPECT_EQ(emu->moves(), 0);
+    }
+  }
+}
+
+// The emulator's own soft limit follows the build: machine X-5 alarms on the forced-origin
+// build, X+5 on the stock one.
+TEST(GrblFirmware, TheEmulatorsSoftLimitIsOnTheSideTheBuildSays) {
+  for (bool force : {true, false}) {
+    GrblEmulatorOptions o = Arm();
+    o.settings[20] = 1;
+    o.homing_force_set_origin = force;
+    o.g54 = std::array<double, 3>{0, 0, 0};  // work = machine
+    auto emu = StartGrbl(o);
+    ASSERT_TRUE(emu);
+    RawPty pty(emu->path());
+    Connect(pty);
+    pty.Write("$I\n");
+    const std::string info = pty.ReadUntil("ok", 5.0);
+    EXPECT_THAT(info, HasSubstr(force ? "[OPT:VZ," : "[OPT:V,"));
+    pty.Write("$H\n");
+    const std::string homed = pty.ReadUntil("ok", 5.0);
+    ASSERT_THAT(homed, HasSubstr("ok"));
+    ASSERT_THAT(homed, Not(HasSubstr("ALARM"))) << info;
+    // Machine X+5. GRBL strips the spaces: "G0X5" is G0 with X5, not G5 ("0X5" is no hex).
+    pty.Write("G0 X5\n");
+    const std::string reply = pty.ReadUntil(force ? "ok" : "ALARM", 5.0);
+    if (force) {
+      EXPECT_THAT(reply, HasSubstr("ok")) << reply;
+      EXPECT_THAT(reply, Not(HasSubstr("ALARM"))) << reply;
+    } else {
+      EXPECT_THAT(reply, HasSubstr("ALARM:2")) << reply;
+    }
+  }
+}
+
 // A slow controller: 10 deg/s braking at 5 deg/s^2 takes 2 s, four times the reply timeout.
 // Ctrl-C waits the hold out (v/a from $110 and $120, plus a margin) before its reset, so
 // GRBL raises no ALARM:3 and the position is kept.
