@@ -106,6 +106,9 @@ fi
 rc1=0
 wait "$snake" || rc1=$?
 t1=$(date +%s.%N)
+# What the cancelled fit had written was removed by Snakemake (a failed job's outputs are).
+left_behind=0
+[ -e "$coll/results/icon__dirs/model" ] || [ -e "$coll/results/icon__dirs/fit.md" ] && left_behind=1
 
 # What is left: planned by a dry run, before the rerun.
 snakemake -n --profile profiles/slurm $fast >"$work/plan.log" 2>&1 || { cat "$work/plan.log"; exit 1; }
@@ -118,7 +121,7 @@ echo "$t1 - $t0" | bc >"$work/slurm1.wall"
 echo "$t3 - $t2" | bc >"$work/slurm2.wall"
 cp -- "$RIG_SLURM_DIR/jobcomp.txt" "$work/jobcomp.txt" 2>/dev/null || : >"$work/jobcomp.txt"
 
-python3 - "$work" "$rc1" "$rc2" "$cancelled" "$has_lp" <<'EOF_PY'
+python3 - "$work" "$rc1" "$rc2" "$cancelled" "$has_lp" "$left_behind" <<'EOF_PY'
 """Checks the two Slurm runs against each other, against Slurm's job records and against the
 local run; prints the figures docs/collection.md quotes."""
 import csv, os, re, sys
@@ -126,6 +129,7 @@ from datetime import datetime
 from pathlib import Path
 
 work, rc1, rc2, cancelled, has_lp = Path(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4], sys.argv[5] == "1"
+left_behind = sys.argv[6] == "1"
 fails = []
 def check(ok, what):
     print(("ok   " if ok else "FAIL ") + what)
@@ -142,6 +146,9 @@ def jobs(log):
             cur = {"rule": m[2], "wildcards": "", "threads": 1, "mem_mb": None, "local": bool(m[1])}
             continue
         if cur is None:
+            continue
+        if not line.startswith(" "):  # the block ends ("Error in rule X:" blocks repeat "jobid:")
+            cur = None
             continue
         if m := re.match(r"^\s+jobid: (\d+)", line):
             cur["id"] = int(m[1]); blocks[int(m[1])] = cur
@@ -222,6 +229,7 @@ if has_lp:
     left = all_keys - {key(b1[i]) for i in d1}
     check(planned_left == left, f"what the rerun plans is what the first run left undone: {sorted(planned_left)}")
     check("fit_lp[name=icon__dirs]" in planned_left, "the cancelled fit is among it")
+    check(not left_behind, "nothing the cancelled fit wrote was left (its model folder and report removed)")
     second = {key(b) for b in runs[1][0].values()}
     check(second == planned_left, "the rerun ran exactly that")
     check(not any("S1" in k or "S2" in k or "S3" in k for k in second), "no session job ran again")
