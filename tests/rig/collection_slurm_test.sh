@@ -46,6 +46,28 @@ if [ "$on_cluster" -eq 0 ]; then
   }
   [ -f "$icon/dirs.lp" ] || echo "note: $icon is not here (RIG_SHARED_DIR): sessions only, no .lp entry, no scancel fault"
 
+  # Requests scale with the image: a session whose frames are 6000x4000 JPEGs (24 MP; only the
+  # header of one is written, which is all the workflow reads to plan) asks for 1.5x the peak
+  # measured per megapixel (share/rig/Snakefile, _PEAKS) and 4x the time.
+  mkdir -p -- "$work/big/root/B/frames/h000_v00"
+  cp -- "$work/S/session.toml" "$work/S/journal.jsonl" "$work/big/root/B/"
+  printf '\xff\xd8\xff\xc0\x00\x11\x08\x0f\xa0\x17\x70\x03\x01\x22\x00\x02\x11\x01\x03\x11\x01\xff\xd9' \
+      >"$work/big/root/B/frames/h000_v00/0_0.02000.jpg"
+  "$rig" collection init "$work/big/coll" --root "$work/big/root" --session-evaluate-arg=--quick >/dev/null
+  (cd "$work/big/coll" && snakemake -n -j1 >"$work/big.log" 2>&1) || { cat "$work/big.log"; exit 1; }
+  python3 - "$work/big.log" <<'EOF_BIG'
+import re, sys
+log = open(sys.argv[1]).read()
+got = {m[1]: (int(m[2]), int(m[3])) for m in re.finditer(
+    r"rule (\w+):(?:\n {4}.*)*?\n {4}resources: [^\n]*?mem_mb=(\d+)[^\n]*?runtime=(\d+)", log)}
+# 1.5 x (MB0 + MB/MP x 24) up to 100 MB; 4 x (s0 + s/MP x 24) in minutes.
+want = {"merge": (3100, 37), "fit_session": (33200, 20), "evaluate_session": (112100, 297),
+        "export": (40700, 47)}
+bad = {k: (got.get(k), v) for k, v in want.items() if got.get(k) != v}
+print(("FAIL" if bad else "ok  ") + f" a 24 MP session's requests (mem_mb, runtime min): {got}" + (f" wanted {bad}" if bad else ""))
+sys.exit(1 if bad else 0)
+EOF_BIG
+
   make_run
   t0=$(date +%s.%N)
   (cd "$work/run/coll" && snakemake --profile profiles/local >"$work/local.log" 2>&1) ||
