@@ -123,6 +123,8 @@ AccountingStorageType=accounting_storage/none
 JobCompType=jobcomp/filetxt
 JobCompLoc=${dir}/jobcomp.txt
 SchedulerType=sched/backfill
+# Start queued jobs within a second (defaults suit a big cluster: a pass every 60 s).
+SchedulerParameters=sched_interval=1,sched_min_interval=100000,bf_interval=1
 SelectType=select/cons_tres
 SelectTypeParameters=CR_Core_Memory
 ReturnToService=2

@@ -136,9 +136,35 @@ left_behind=0
 snakemake -n --profile profiles/slurm $fast >"$work/plan.log" 2>&1 || { cat "$work/plan.log"; exit 1; }
 # Run 2: to the end.
 t2=$(date +%s.%N)
+# Run 2, to the end; the node is drained while the fit runs again (it finishes: a drain takes
+# no new jobs and lets running ones end), the jobs after it wait in the queue, and the node is
+# resumed: they run then, once each.
+snakemake --profile profiles/slurm $fast >"$work/slurm2.log" 2>&1 &
+snake=$!
+drained=""
+if [ "$has_lp" -eq 1 ]; then
+  host=$(hostname -s)
+  for _ in $(seq 1200); do
+    [ -n "$(squeue -h -t R -o '%j' | grep '^snakejob_fit_lp_' || true)" ] && break
+    kill -0 "$snake" 2>/dev/null || break
+    sleep 0.1
+  done
+  scontrol update NodeName="$host" State=DRAIN Reason=rig-collection-slurm-test
+  # Held: a job of the run pending while the node is drained (or draining).
+  for _ in $(seq 600); do
+    state=$(sinfo -h -N -n "$host" -o %t)
+    pending=$(squeue -h -t PD -o '%j' | grep -c '^snakejob_' || true)
+    if [ "$pending" -gt 0 ] && [ "$state" = "drain" ]; then drained="$pending job(s) pending on the drained node"; break; fi
+    kill -0 "$snake" 2>/dev/null || break
+    sleep 0.1
+  done
+  sleep 2
+  scontrol update NodeName="$host" State=RESUME
+fi
 rc2=0
-snakemake --profile profiles/slurm $fast >"$work/slurm2.log" 2>&1 || rc2=$?
+wait "$snake" || rc2=$?
 t3=$(date +%s.%N)
+echo "$drained" >"$work/drained"
 echo "$t1 - $t0" | bc >"$work/slurm1.wall"
 echo "$t3 - $t2" | bc >"$work/slurm2.wall"
 cp -- "$RIG_SLURM_DIR/jobcomp.txt" "$work/jobcomp.txt" 2>/dev/null || : >"$work/jobcomp.txt"
@@ -255,6 +281,8 @@ if has_lp:
     second = {key(b) for b in runs[1][0].values()}
     check(second == planned_left, "the rerun ran exactly that")
     check(not any("S1" in k or "S2" in k or "S3" in k for k in second), "no session job ran again")
+    drained = (work / "drained").read_text().strip()
+    check(bool(drained), "the node drained mid-run held the next jobs" + (f" ({drained})" if drained else ""))
 
 # Outputs: the local run's and the Slurm run's trees (the sessions and the collection folder),
 # byte for byte. Not compared: what records how or how long a job ran (logs/, benchmarks/,
