@@ -3,7 +3,8 @@
 # sessions and the NeuralRTI icon's .lp run through Snakemake's Slurm executor with the
 # collection's own profile, every step one Slurm job asking for its rule's threads and memory;
 # the fit of the .lp is cancelled with scancel while it runs, the rerun runs only what that left
-# missing, and the outputs equal a local run's byte for byte (docs/collection.md, "On Slurm").
+# missing, the node drained during the rerun holds the jobs after it until resumed, and the
+# outputs equal a local run's byte for byte (docs/collection.md, "On Slurm").
 #   collection_slurm_test.sh RIG SOURCE_DIR [SHARED_DIR]
 # Exits 77 (CTest: skipped), saying why, when snakemake is missing or the cluster cannot be
 # brought up here (not root, no slurm-wlm/munge, a daemon that does not start).
