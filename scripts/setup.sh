@@ -14,8 +14,9 @@ packages=(
   # infrastructure
   libspdlog-dev libfmt-dev libtomlplusplus-dev libcli11-dev nlohmann-json3-dev
   zlib1g-dev
-  # collections (rig collection: share/rig/Snakefile)
-  snakemake
+  # collections (rig collection: share/rig/Snakefile); a one-node Slurm cluster on localhost
+  # for the test that runs a collection as Slurm jobs (scripts/slurm-local.sh)
+  snakemake slurm-wlm munge
   # rig daemon: its HTTP+JSON API; chromium: the status page tested in a headless browser
   libcpp-httplib-dev chromium
   # tests and benchmarks (libltdl-dev, xz-utils: building libgphoto2's virtual camera)
