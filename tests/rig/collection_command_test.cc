@@ -337,6 +337,29 @@ TEST_F(CollectionCommand, LinkLoopsInTheRootAreSkippedWithAWarningAndPlanningEnd
   EXPECT_EQ(Keys(Jobs(plan.log)).count("merge[name=loop__deep__L1]"), 0u) << plan.log;
 }
 
+// Snakemake 7.21's Slurm executor writes the collection folder into sbatch's shell line
+// unquoted: on Slurm the workflow refuses a folder a shell would split, before any job; the
+// same folder runs locally, and a plain one plans on Slurm.
+TEST_F(CollectionCommand, OnSlurmAFolderAShellWouldSplitIsRefusedBeforeAnyJob) {
+  const fs::path root = Root("sroot", {"S1"});
+  for (const std::string name : {"with space", "plain"}) {
+    const fs::path c = *dir_ / name;
+    auto init = RunRig("collection init '" + c.string() + "' --root " + root.string() +
+                       " --no-evaluate-sessions");
+    ASSERT_EQ(init.status, 0) << init.output;
+    SnakeRun slurm = Snakemake(c, "-n --profile profiles/slurm", 120);
+    SnakeRun local = Snakemake(c, "-n -j2", 120);
+    EXPECT_EQ(local.status, 0) << local.log;
+    if (name == "plain") {
+      EXPECT_EQ(slurm.status, 0) << slurm.log;
+    } else {
+      EXPECT_NE(slurm.status, 0) << slurm.log;
+      EXPECT_THAT(slurm.log, HasSubstr("on Slurm the collection folder's path may hold only")) << slurm.log;
+      EXPECT_TRUE(Jobs(slurm.log).empty()) << slurm.log;
+    }
+  }
+}
+
 TEST_F(CollectionCommand, KilledAndStartedAgainWritesEveryOutputExactlyOnce) {
   const fs::path root = Root("kroot", {"K1", "K2"});
   const fs::path c = Init("K", root, "");
