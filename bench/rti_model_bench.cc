@@ -81,8 +81,7 @@ int main(int argc, char** argv) {
   const std::string tmp = (std::filesystem::temp_directory_path() /
                            fmt::format("rti_model_bench_{}", ::getpid())).string();
   if (automatic) {
-    PcaChoiceOptions co;
-    co.max_bytes_per_pixel = budget;
+    PcaChoiceOptions co = PcaChoiceForBudget(budget);
     co.base.impute_iterations = impute;
     auto full = ComputePcaComponents(all, co.base, LargestCandidate(co));
     if (!full.ok()) return 1;

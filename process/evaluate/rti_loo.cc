@@ -68,7 +68,11 @@ Result<RtiLooRow> PcaRow(const RtiCapture& cap, const PcaChoiceOptions& co,
   RIG_ASSIGN_OR_RETURN(PcaAutoFit fit, FitPcaAuto(cap.samples, nullptr, co));
   RtiLooRow row;
   row.family = "pca-bilinear";
-  row.setting = setting;
+  // What the same choice takes on every image, as `rig fit` would.
+  const PcaOptions& chosen = fit.choice.options;
+  row.setting = fmt::format("{}; all images: k {}, {}x{} grid, q{} (of {} candidates)", setting,
+                            chosen.components, chosen.grid_resolution, chosen.grid_resolution,
+                            chosen.jpeg_quality, fit.choice.candidates.size());
   row.protocol = Protocol(static_cast<int>(folds.size()), cap.samples.lights());
   row.psnr_mean_mse_db = score->psnr_mean_mse_db;
   row.psnr_median_db = score->psnr_median_db;
@@ -224,9 +228,12 @@ Result<std::vector<RtiLooRow>> RtiLooTable(const RtiCapture& cap, const RtiLooOp
     add(r);
   }
   {
-    PcaChoiceOptions big = o.choice;
-    big.max_bytes_per_pixel = o.large_budget;
-    big.components = {9, 12, 18, 24, 30};
+    // The candidates `rig fit --max-bytes-per-pixel <large_budget>` has.
+    PcaChoiceOptions big = PcaChoiceForBudget(o.large_budget);
+    big.base = o.choice.base;
+    big.tolerance_db = o.choice.tolerance_db;
+    big.validation_every = o.choice.validation_every;
+    big.validation_pixels = o.choice.validation_pixels;
     RIG_ASSIGN_OR_RETURN(RtiLooRow r,
                          PcaRow(cap, big, folds,
                                 fmt::format("auto within {:.0f} B/px", o.large_budget), tmp));

@@ -225,23 +225,10 @@ int RunLp(FitArgs a, const Config& config) {
     std::printf("rig fit: near lamp %s\n", near_note.c_str());
     std::fflush(stdout);
   }
-  if (!a.loo_report.empty()) {
-    RtiLooOptions lo;
-    lo.every = a.loo_every;
-    lo.neural = !a.no_neural;
-    lo.choice.max_bytes_per_pixel = a.max_bpp;
-    std::printf("rig fit: leave-one-out on %s (%d images %dx%d), refitting without each...\n",
-                a.lp.c_str(), capture->samples.lights(), capture->samples.width,
-                capture->samples.height);
-    auto rows = WriteRtiLooReport(*capture, lo, a.loo_report, PrintLooRow);
-    if (!rows.ok()) return ReportError("fit", rows.error());
-    std::printf("rig fit: wrote %s and its charts beside it\n", a.loo_report.c_str());
-    if (a.out.empty()) return 0;
-  }
   RtiFitRequest req;
   req.family = a.basis.empty() ? "auto" : a.basis;
   req.near_lamp = near_note;
-  req.choice.max_bytes_per_pixel = a.max_bpp;
+  req.choice = PcaChoiceForBudget(a.max_bpp);
   req.choice.base.impute_iterations = a.impute;
   req.linear = a.linear;
   req.components = a.components;
@@ -251,6 +238,19 @@ int RunLp(FitArgs a, const Config& config) {
   else if (a.mask == "drop") req.choice.base.mask = PcaMaskMode::kDrop;
   else if (a.mask == "none") req.choice.base.mask = PcaMaskMode::kNone;
   else return ReportError("fit", MakeError(ErrorCode::kInvalidInput, "--mask", "'{}': hinge, drop or none", a.mask));
+  if (!a.loo_report.empty()) {
+    RtiLooOptions lo;
+    lo.every = a.loo_every;
+    lo.neural = !a.no_neural;
+    lo.choice = req.choice;  // the report's rows are the command's own candidates
+    std::printf("rig fit: leave-one-out on %s (%d images %dx%d), refitting without each...\n",
+                a.lp.c_str(), capture->samples.lights(), capture->samples.width,
+                capture->samples.height);
+    auto rows = WriteRtiLooReport(*capture, lo, a.loo_report, PrintLooRow);
+    if (!rows.ok()) return ReportError("fit", rows.error());
+    std::printf("rig fit: wrote %s and its charts beside it\n", a.loo_report.c_str());
+    if (a.out.empty()) return 0;
+  }
   ProcessConfig pc = config.process;
   if (a.space.empty()) pc.fit_space = "srgb";  // 8-bit photographs: fitted as they are encoded
   auto harmonic = HarmonicOptions(a, pc);

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <regex>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -164,6 +165,39 @@ TEST(EvaluateLpCommand, EveryFamilyIsRefittedPerHeldOutImageAndCharted) {
   // A second run into the same folder is refused: nothing is overwritten.
   r = RunRig("evaluate --lp " + lp + " --lp-every 12 --out " + dir + "/report");
   EXPECT_EQ(r.status, 2) << r.output;
+  fs::remove_all(dir);
+}
+
+// The leave-one-out report's rows and the command are one choice: `rig fit
+// --max-bytes-per-pixel B` takes what the report's "auto within B" row says it takes on every
+// image, from the same candidates (a large budget adds 24 and 30 components to both).
+TEST(FitLpCommand, TheReportsBudgetRowsAndTheCommandMakeTheSameChoice) {
+  const std::string dir = testing::FreshTempDir("fit-lp-agree");
+  const std::string lp = WriteCapture(dir, 48, 40);
+  // What the command chose, as the report states a row's choice on every image.
+  auto fit = [&](const std::string& budget, const std::string& extra) {
+    auto r = RunRig("fit --lp " + lp + " --max-bytes-per-pixel " + budget + " --out " + dir + "/m" + budget +
+                    extra);
+    EXPECT_EQ(r.status, 0) << r.output;
+    std::smatch m;
+    const std::regex re("(\\d+) components on a (\\d+)x\\d+ grid at JPEG q(\\d+).*the smallest of (\\d+) candidates");
+    if (!std::regex_search(r.output, m, re)) {
+      ADD_FAILURE() << r.output;
+      return std::string();
+    }
+    return "k " + m[1].str() + ", " + m[2].str() + "x" + m[2].str() + " grid, q" + m[3].str() + " (of " +
+           m[4].str() + " candidates)";
+  };
+  const std::string at12 = fit("12", "");
+  EXPECT_THAT(at12, HasSubstr("(of 96 candidates)"));  // 24 and 30 components join
+  const std::string report = dir + "/loo.md";
+  const std::string at34 =
+      fit("3.4", " --loo-every 12 --loo-no-neural --loo-report " + report);
+  EXPECT_THAT(at34, HasSubstr("(of 72 candidates)"));
+  std::ifstream f(report);
+  const std::string md((std::istreambuf_iterator<char>(f)), {});
+  EXPECT_THAT(md, HasSubstr("default: auto within 3.4 B/px; all images: " + at34)) << md;
+  EXPECT_THAT(md, HasSubstr("auto within 12 B/px; all images: " + at12)) << md;
   fs::remove_all(dir);
 }
 

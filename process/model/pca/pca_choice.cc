@@ -288,6 +288,16 @@ Result<PcaChoice> ChoosePca(const PcaChoiceInput& in, const PcaComponents& comps
   return choice;
 }
 
+PcaChoiceOptions PcaChoiceForBudget(double max_bytes_per_pixel) {
+  PcaChoiceOptions o;
+  o.max_bytes_per_pixel = max_bytes_per_pixel;
+  if (max_bytes_per_pixel >= kPcaLargeCandidatesFromBytesPerPixel) {
+    o.components.push_back(24);
+    o.components.push_back(30);
+  }
+  return o;
+}
+
 int LargestCandidate(const PcaChoiceOptions& o) {
   int kmax = 1;
   for (int k : o.components) kmax = std::max(kmax, k);

@@ -71,6 +71,13 @@ Result<PcaAutoFit> FitPcaAuto(const LightSamples& samples, const PcaComponents* 
                               const PcaChoiceOptions& options);
 int LargestCandidate(const PcaChoiceOptions& options);
 
+// The candidates for a byte budget, one rule for `rig fit --max-bytes-per-pixel B`, the
+// leave-one-out report's rows and the benchmarks: the default candidates, and from twice the
+// default budget (6.8 B/px) on also 24 and 30 components, which only a budget that large can
+// hold (a component plane costs ~0.2-0.4 B/px at q75-q95 on real captures).
+inline constexpr double kPcaLargeCandidatesFromBytesPerPixel = 6.8;
+PcaChoiceOptions PcaChoiceForBudget(double max_bytes_per_pixel);
+
 // Markdown table of the candidates with the choice marked.
 std::string PcaChoiceMarkdown(const PcaChoice& choice);
 
