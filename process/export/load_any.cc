@@ -34,7 +34,7 @@ Result<std::unique_ptr<ReflectanceModel>> LoadAnyModel(const std::string& path) 
   std::error_code ec;
   if (fs::is_directory(path, ec)) {
     const std::string type = RelightWebType(path);
-    if (type == "ptm" || type == "hsh") {
+    if (type == "ptm" || type == "hsh" || type == "sh") {
       RIG_ASSIGN_OR_RETURN(RelightCoefficients c, ReadRelightWeb(path));
       return WrapRelight(std::move(c), path + " (relight web format)");
     }

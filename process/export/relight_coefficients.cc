@@ -73,7 +73,7 @@ class RelightFamily final : public ReflectanceModel {
 }  // namespace
 
 const char* RelightTypeName(RelightType type) {
-  return type == RelightType::kPtm ? "ptm" : "hsh";
+  return type == RelightType::kPtm ? "ptm" : type == RelightType::kSh ? "sh" : "hsh";
 }
 
 void RelightWeights(RelightType type, int terms, const Vec3& d, double* w) {
@@ -90,9 +90,24 @@ void RelightWeights(RelightType type, int terms, const Vec3& d, double* w) {
     w[5] = ly * ly;
     return;
   }
-  RIG_CHECK(terms == 9 || terms == 4 || terms == 1, "relight's HSH has 1, 4 or 9 terms");
+  RIG_CHECK(terms == 9 || terms == 4 || terms == 1, "relight's HSH and SH have 1, 4 or 9 terms");
   // relight takes lz = sqrt(1 - lx² - ly²), whatever the sign of the z it was given.
   const double lz = std::sqrt(std::max(0.0, 1.0 - lx * lx - ly * ly));
+  if (type == RelightType::kSh) {
+    // relight's constants, as floats: 0.282095, 0.488603, 1.092548, 0.315392, 0.546274.
+    w[0] = 0.282095;
+    if (terms == 1) return;
+    w[1] = 0.488603 * ly;
+    w[2] = 0.488603 * lz;
+    w[3] = 0.488603 * lx;
+    if (terms == 4) return;
+    w[4] = 1.092548 * lx * ly;
+    w[5] = 1.092548 * ly * lz;
+    w[6] = 0.315392 * (3 * lz * lz - 1);
+    w[7] = 1.092548 * lx * lz;
+    w[8] = 0.546274 * (lx * lx - ly * ly);
+    return;
+  }
   double phi = std::atan2(ly, lx);
   if (phi < 0) phi += 2 * M_PI;
   const double theta = std::min(std::acos(std::min(1.0, lz)), M_PI / 2 - 0.01);

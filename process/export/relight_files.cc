@@ -387,8 +387,15 @@ Result<RelightCoefficients> ReadRelightWebImpl(const std::string& folder, bool r
       return MakeError(ErrorCode::kInvalidInput, path,
                        "nplanes: {} for type hsh, 27 (9 terms) or 12 (4 terms) expected", nplanes);
     }
+  } else if (type == "sh") {
+    c.type = RelightType::kSh;
+    if (nplanes != 27 && nplanes != 12) {
+      return MakeError(ErrorCode::kInvalidInput, path,
+                       "nplanes: {} for type sh, 27 (9 terms) or 12 (4 terms) expected", nplanes);
+    }
   } else {
-    return MakeError(ErrorCode::kInvalidInput, path, "type: '{}' is not read here (ptm, hsh)", type);
+    return MakeError(ErrorCode::kInvalidInput, path,
+                     "type: '{}' is not read here (read: ptm rgb/lrgb, hsh rgb, sh rgb, bilinear mrgb)", type);
   }
   c.terms = c.lrgb ? 6 : static_cast<int>(nplanes / 3);
   if (info.contains("format") && info["format"] != "jpg") {

@@ -88,6 +88,11 @@ Status ConvertForView(const std::string& path, const std::string& ext, int quali
       target.terms = rc->terms;
       target.lrgb = rc->lrgb;
       lights = rc->lights;
+      // relight's JS viewer has no sh weights: the page shows the model refitted as hsh.
+      if (rc->type == RelightType::kSh) {
+        target.type = RelightType::kHsh;
+        target.terms = 9;
+      }
     } else {
       target.type = RelightType::kHsh;
       target.terms = 9;

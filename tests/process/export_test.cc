@@ -332,6 +332,67 @@ TEST(ExportWriters, PtmBottomUpRowsAndBiasOutsideByteRangeHoldTheCoefficients) {
 
 // ---- refusals ------------------------------------------------------------------------------
 
+// relight's sh folders (type "sh", rgb): read and rendered with Rti::lightWeightsSh. The
+// expected values come from the trigonometric form of the same harmonics (0.5/sqrt(pi),
+// 0.5 sqrt(3/pi) sin(phi) sin(theta), ...), not from the constants the reader uses.
+TEST(ExportReaders, ShFoldersRenderWithRelightsRealHarmonics) {
+  for (int terms : {9, 4}) {
+    RelightCoefficients c;
+    c.type = RelightType::kSh;
+    c.terms = terms;
+    c.width = kW;
+    c.height = kH;
+    for (int j = 0; j < terms; ++j) {
+      cv::Mat p(kH, kW, CV_32FC3);
+      for (int y = 0; y < kH; ++y)
+        for (int x = 0; x < kW; ++x)
+          for (int ch = 0; ch < 3; ++ch)
+            p.at<cv::Vec3f>(y, x)[ch] = (j == 0 ? 300.f : 40.f / (j + 1)) + 0.5f * x + 10.f * ch;
+      c.planes.push_back(p);
+    }
+    const std::string dir = Temp("sh" + std::to_string(terms));
+    ASSERT_TRUE(WriteRelightWeb(dir, c, {}).ok());
+    auto m = LoadAnyModel(dir);
+    ASSERT_TRUE(m.ok()) << m.error().ToString();
+    EXPECT_EQ((*m)->family(), "sh");
+    const RelightCoefficients* back = RelightCoefficientsOf(**m);
+    ASSERT_NE(back, nullptr);
+    EXPECT_EQ(back->terms, terms);
+    const double theta = 40 * M_PI / 180, phi = 120 * M_PI / 180;
+    const Vec3 d{std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)};
+    const double st = std::sin(theta), ct = std::cos(theta);
+    const double y[9] = {0.5 / std::sqrt(M_PI),
+                         0.5 * std::sqrt(3 / M_PI) * std::sin(phi) * st,
+                         0.5 * std::sqrt(3 / M_PI) * ct,
+                         0.5 * std::sqrt(3 / M_PI) * std::cos(phi) * st,
+                         0.25 * std::sqrt(15 / M_PI) * std::sin(2 * phi) * st * st,
+                         0.5 * std::sqrt(15 / M_PI) * st * ct * std::sin(phi),
+                         0.25 * std::sqrt(5 / M_PI) * (3 * ct * ct - 1),
+                         0.5 * std::sqrt(15 / M_PI) * st * ct * std::cos(phi),
+                         0.25 * std::sqrt(15 / M_PI) * st * st * std::cos(2 * phi)};
+    const cv::Mat v = RenderRelight(*back, d);
+    for (int x : {3, 30, 60}) {
+      for (int ch = 0; ch < 3; ++ch) {
+        double want = 0;
+        for (int j = 0; j < terms; ++j) want += y[j] * c.planes[j].at<cv::Vec3f>(20, x)[ch];
+        // The planes as written: 8-bit JPEG at q95 of a ramp, half a step of each range.
+        EXPECT_NEAR(v.at<cv::Vec3f>(20, x)[ch], want, 1.0) << "terms " << terms << " x " << x << " ch " << ch;
+      }
+    }
+  }
+  // A type still not read says what is.
+  const std::string rbf = Temp("sh9");
+  {
+    std::ifstream f(rbf + "/info.json");
+    auto info = nlohmann::ordered_json::parse(f);
+    info["type"] = "rbf";
+    std::ofstream(rbf + "/info.json") << info.dump();
+  }
+  auto r = LoadAnyModel(rbf);
+  ASSERT_FALSE(r.ok());
+  EXPECT_THAT(r.error().ToString(), HasSubstr("sh rgb"));
+}
+
 TEST(ExportReaders, TruncatedAndInconsistentFilesAreRefusedWithFileAndField) {
   const std::string good = HandMadePtm(Temp("good.ptm"));
   const auto size = fs::file_size(good);

@@ -902,7 +902,8 @@ Result<PcaModel> PcaModel::Load(const std::string& folder) {
     if (info.at("type").get<std::string>() != "bilinear" ||
         info.at("colorspace").get<std::string>() != "mrgb") {
       return MakeError(ErrorCode::kInvalidInput, path,
-                       "type '{}' colorspace '{}': only bilinear mrgb is read here",
+                       "type '{}' colorspace '{}' is not read here: rig reads relight's bilinear "
+                       "mrgb, ptm rgb/lrgb, hsh rgb and sh rgb folders (not yet rbf, yrbf, ybilinear)",
                        info.at("type").get<std::string>(), info.at("colorspace").get<std::string>());
     }
     RIG_ASSIGN_OR_RETURN(m.width_, JsonIntegerIn(info.at("width"), 1, 65500, path, "width"));
