@@ -7,7 +7,9 @@
 //                      [--working-pixels 65536] [--pixels 16384] [--criterion reduction|largest]
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <sstream>
@@ -33,6 +35,42 @@ std::string Names(const std::vector<int>& lights) {
   std::string s;
   for (int l : lights) s += fmt::format("{}{}", s.empty() ? "" : " ", l + 1);
   return s;
+}
+
+// A second even spread: N points of a Fibonacci spiral over the capture's range of heights
+// (z from its lowest to its highest light), each snapped to the nearest dense light not yet
+// taken; ties to the lower index.
+std::vector<int> FibonacciLights(const std::vector<rig::Vec3>& dirs, int n) {
+  double zmin = 1, zmax = -1;
+  for (const auto& d : dirs) {
+    zmin = std::min(zmin, d[2]);
+    zmax = std::max(zmax, d[2]);
+  }
+  const double golden = M_PI * (3 - std::sqrt(5.0));
+  std::vector<int> out;
+  for (int i = 0; i < n; ++i) {
+    const double z = zmax - (zmax - zmin) * (i + 0.5) / n, r = std::sqrt(std::max(0.0, 1 - z * z));
+    const rig::Vec3 p = {r * std::cos(golden * i), r * std::sin(golden * i), z};
+    int best = -1;
+    double best_dot = -2;
+    for (int l = 0; l < static_cast<int>(dirs.size()); ++l) {
+      if (std::find(out.begin(), out.end(), l) != out.end()) continue;
+      const double dot = p[0] * dirs[l][0] + p[1] * dirs[l][1] + p[2] * dirs[l][2];
+      if (dot > best_dot) {
+        best_dot = dot;
+        best = l;
+      }
+    }
+    out.push_back(best);
+  }
+  return out;
+}
+
+// Every k-th light of the .lp's order (k = lights / n, rounded down positions).
+std::vector<int> StrideLights(int lights, int n) {
+  std::vector<int> out;
+  for (int i = 0; i < n; ++i) out.push_back(static_cast<int>(static_cast<long>(i) * lights / n));
+  return out;
 }
 
 int Fail(const rig::Error& e) {
@@ -98,6 +136,27 @@ int main(int argc, char** argv) {
                 a->model.c_str(), e->model.c_str());
     std::printf("|   | adaptive: %s; even: %s | | | | | | |\n", Names(*adaptive).c_str(),
                 Names(even).c_str());
+    std::fflush(stdout);
+  }
+  std::printf("\nAgainst two more even spreads (each pair scored at the lights in neither of "
+              "its two sets):\n\n| N | vs Fibonacci: held out, chosen / even dB (mean-MSE), "
+              "difference | vs every k-th of the .lp: held out, chosen / even dB, difference |\n"
+              "|---|---|---|\n");
+  for (int n : counts) {
+    double seconds = 0;
+    auto adaptive = adaptive_of(n, &seconds);
+    if (!adaptive.ok()) return Fail(adaptive.error());
+    std::string row = fmt::format("| {} |", n);
+    for (const auto& even : {FibonacciLights(dirs, n), StrideLights(lights, n)}) {
+      const std::vector<int> held = LightsInNone(lights, {*adaptive, even});
+      auto a = ScoreLightSubset(*capture, *adaptive, held, tmp);
+      if (!a.ok()) return Fail(a.error());
+      auto e = ScoreLightSubset(*capture, even, held, tmp);
+      if (!e.ok()) return Fail(e.error());
+      row += fmt::format(" {}, {:.2f} / {:.2f}, {:+.2f} |", held.size(), a->psnr_mean_mse_db,
+                         e->psnr_mean_mse_db, a->psnr_mean_mse_db - e->psnr_mean_mse_db);
+    }
+    std::printf("%s\n", row.c_str());
     std::fflush(stdout);
   }
   if (versus.size() == 2) {
