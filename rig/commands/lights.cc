@@ -10,8 +10,8 @@ namespace rig {
 int RunLights(int argc, char** argv) {
   CLI::App app{"Choose N lights of a dense .lp capture one after another, each from the images "
                "of the lights already chosen (never an image not yet chosen): a spread seed, "
-               "then the light where a per-pixel model of the chosen lights predicts the "
-               "largest error. Writes SUB.lp (the chosen images, in the order chosen) and, with "
+               "then the light whose taking removes the most error that a per-pixel "
+               "model of the chosen lights predicts over the lights not chosen. Writes SUB.lp (the chosen images, in the order chosen) and, with "
                "--report, why each was chosen (docs/lights.md).",
                "rig lights"};
   std::string lp, out, report, log_level, criterion = "reduction";
