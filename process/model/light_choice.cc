@@ -12,8 +12,6 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "config/atomic_file.h"
-#include "process/export/relight_files.h"
 
 namespace rig {
 namespace {
@@ -348,23 +346,6 @@ std::string LightChoiceMarkdown(const std::vector<LpEntry>& entries, const Light
         s.remaining_rms < 0 ? "—" : fmt::format("{:.1f}", s.remaining_rms), s.reason);
   }
   return md;
-}
-
-Result<LightChoice> ChooseLightsOfLp(const std::string& lp, const LightChoiceOptions& options,
-                                     const std::string& out_lp, const std::string& report) {
-  RIG_ASSIGN_OR_RETURN(std::vector<LpEntry> entries, ReadLp(lp));
-  RIG_ASSIGN_OR_RETURN(LightChoice choice, ChooseLpLights(entries, options));
-  namespace fs = std::filesystem;
-  const fs::path folder = fs::absolute(fs::path(out_lp)).parent_path();
-  std::vector<std::string> images;
-  std::vector<Vec3> dirs;
-  for (int l : choice.Chosen()) {
-    images.push_back(fs::absolute(entries[l].image).lexically_relative(folder).string());
-    dirs.push_back(entries[l].direction);
-  }
-  RIG_TRY(WriteLp(out_lp, images, dirs));
-  if (!report.empty()) RIG_TRY(WriteFileAtomic(report, LightChoiceMarkdown(entries, choice, options)));
-  return choice;
 }
 
 }  // namespace rig

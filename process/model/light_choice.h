@@ -85,10 +85,4 @@ Result<LightChoice> ChooseLpLights(const std::vector<LpEntry>& entries,
 std::string LightChoiceMarkdown(const std::vector<LpEntry>& entries, const LightChoice& choice,
                                 const LightChoiceOptions& options);
 
-// `rig lights --lp IN --choose N --out SUB.lp [--report R.md]`: the choice, SUB.lp listing the
-// chosen images (paths relative to SUB.lp's folder) in the order chosen, and the report.
-// Both files written atomically.
-Result<LightChoice> ChooseLightsOfLp(const std::string& lp, const LightChoiceOptions& options,
-                                     const std::string& out_lp, const std::string& report);
-
 }  // namespace rig

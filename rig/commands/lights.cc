@@ -2,6 +2,7 @@
 // capture (docs/lights.md "Choosing the lights").
 #include <cstdio>
 
+#include "process/export/light_choice_files.h"
 #include "process/model/light_choice.h"
 #include "rig/commands/command.h"
 

@@ -12,6 +12,7 @@
 
 #include "process/evaluate/light_subset.h"
 #include "process/model/any/rti_fit.h"
+#include "process/export/light_choice_files.h"
 #include "process/model/light_choice.h"
 #include "process/model/lp.h"
 #include "tests/support/lp_capture.h"
