@@ -84,4 +84,23 @@ LightSamples WithoutLight(const LightSamples& samples, int held_out) {
   return out;
 }
 
+LightSamples OnlyLights(const LightSamples& samples, const std::vector<int>& kept) {
+  LightSamples out;
+  out.width = samples.width;
+  out.height = samples.height;
+  for (int l : kept) out.directions.push_back(samples.directions[static_cast<size_t>(l)]);
+  const size_t pixels = samples.pixels();
+  const size_t row_in = samples.directions.size() * 3, row_out = kept.size() * 3;
+  out.values.resize(pixels * row_out);
+  if (!samples.usable.empty()) out.usable.resize(pixels * row_out);
+  for (size_t p = 0; p < pixels; ++p) {
+    for (size_t k = 0; k < kept.size(); ++k) {
+      const size_t from = p * row_in + static_cast<size_t>(kept[k]) * 3, to = p * row_out + k * 3;
+      std::copy_n(samples.values.data() + from, 3, out.values.data() + to);
+      if (!samples.usable.empty()) std::copy_n(samples.usable.data() + from, 3, out.usable.data() + to);
+    }
+  }
+  return out;
+}
+
 }  // namespace rig

@@ -56,4 +56,7 @@ size_t DivideSamplesByFalloff(const NearLamp& lamp, bool srgb, LightSamples* sam
 // The same samples without light `held_out` (its directions, values and mask removed).
 LightSamples WithoutLight(const LightSamples& samples, int held_out);
 
+// The same samples of the lights `kept` only (indices into samples.directions), in that order.
+LightSamples OnlyLights(const LightSamples& samples, const std::vector<int>& kept);
+
 }  // namespace rig

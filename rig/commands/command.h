@@ -62,5 +62,6 @@ int RunDaemon(int argc, char** argv);  // rig/commands/daemon.cc
 int RunStatus(int argc, char** argv);  // rig/commands/status.cc
 int RunCalibrateLights(int argc, char** argv);  // rig/commands/calibrate_lights.cc
 int RunNormals(int argc, char** argv);          // rig/commands/normals.cc
+int RunLights(int argc, char** argv);           // rig/commands/lights.cc
 
 }  // namespace rig

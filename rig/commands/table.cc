@@ -40,6 +40,7 @@ const std::vector<Command>& Commands() {
       {CommandGroup::kService, "daemon", "the capture service: job queue, HTTP+JSON API, live status page", RunDaemon},
       {CommandGroup::kService, "status", "what a running 'rig daemon' is doing", RunStatus},
       {CommandGroup::kAcquisition, "calibrate-lights", "light directions from chrome spheres: an .lp, a session's [light_frame]", RunCalibrateLights},
+      {CommandGroup::kProcessing, "lights", "choose the N lights a capture needs, one after another (next-best-light)", RunLights},
       {CommandGroup::kProcessing, "normals", "surface normals and albedo by photometric stereo (EXR + PNG)", RunNormals},
   };
   return kCommands;
