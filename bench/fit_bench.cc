@@ -194,7 +194,6 @@ bool PcaLastFrame(const rig::MapStore& store, const std::vector<std::string>& ke
                   const std::string& scene) {
   rig::PcaHdrChoiceOptions o;
   o.threads = 2;
-  o.scratch = (folder / "pca-choice").string();
   if (std::getenv("RIG_BENCH_NO_SYNC") == nullptr) ::sync();
   auto t = Clock::now();
   auto bands = store.Bands(keys);
