@@ -59,8 +59,11 @@ LightSamples SampledCodes(const std::vector<float>& sampled, size_t count,
   s.height = 1;
   s.directions = directions;
   s.values.resize(sampled.size());
+  // By table: HdrCode's own codes (HdrCodeTable), without a power per sample.
+  const std::array<HdrCodeTable, 3> code = {HdrCodeTable(curve, lamp[0]), HdrCodeTable(curve, lamp[1]),
+                                            HdrCodeTable(curve, lamp[2])};
   for (size_t i = 0; i < sampled.size(); i += 3)
-    for (int c = 0; c < 3; ++c) s.values[i + c] = HdrCode(sampled[i + (2 - c)], lamp[c], curve);
+    for (int c = 0; c < 3; ++c) s.values[i + c] = code[c](sampled[i + (2 - c)]);
   return s;
 }
 
@@ -133,8 +136,9 @@ Result<PcaSessionFit> FitPcaHdrFromBands(MapBands& maps, const std::vector<Vec3>
   out.write_s = Since(t2);
   out.time_s = Since(t0);
   Log("process")->info("pca of radiance maps: {} (choice {:.2f} s on {}x{}, sample {:.2f} s, "
-                       "planes {:.2f} s)", out.choice.reason, out.choice_s, r.width, r.height,
-                       out.gather_s, out.write_s);
+                       "planes {:.2f} s: codes {:.2f}, solve {:.2f}, JPEG {:.2f})",
+                       out.choice.reason, out.choice_s, r.width, r.height, out.gather_s,
+                       out.write_s, out.planes.source_s, out.planes.solve_s, out.planes.encode_s);
   return out;
 }
 
