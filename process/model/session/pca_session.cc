@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstring>
 #include <exception>
+#include <thread>
 
 #include <fmt/format.h>
 
@@ -67,6 +68,51 @@ LightSamples SampledCodes(const std::vector<float>& sampled, size_t count,
   return s;
 }
 
+// A band's codes, laid out as LightSamples::values. A source that may be read from several
+// threads at once (the maps in memory) is read and coded in row slices, one per thread, each
+// slice's codes in its place (pixel-major, so the slices are contiguous); otherwise read once
+// and coded on the threads by map. The codes are the same either way.
+class BandCoder {
+ public:
+  BandCoder(MapBands& maps, const std::vector<Vec3>& directions, const std::array<double, 3>& lamp,
+            const HdrCodeCurve& curve, int threads)
+      : maps_(maps), directions_(directions), lamp_(lamp), curve_(curve),
+        threads_(std::max(1, threads)), bgr_(static_cast<size_t>(threads_)) {}
+
+  Status Codes(int y0, int rows, std::vector<uint8_t>* values) {
+    const int slices = maps_.concurrent() ? std::min(threads_, rows) : 1;
+    if (slices == 1) {
+      RIG_TRY(ReadRows(maps_, y0, y0 + rows, &bgr_[0]));
+      *values = SamplesFromMaps(bgr_[0], directions_, lamp_, curve_, threads_).values;
+      return Ok();
+    }
+    const size_t per_row = static_cast<size_t>(maps_.width()) * maps_.count() * 3;
+    values->resize(per_row * static_cast<size_t>(rows));
+    std::vector<Status> status(static_cast<size_t>(slices), Ok());
+    auto slice = [&](int t) {
+      const int a = y0 + rows * t / slices, b = y0 + rows * (t + 1) / slices;
+      status[t] = ReadRows(maps_, a, b, &bgr_[t]);
+      if (!status[t].ok()) return;
+      const LightSamples s = SamplesFromMaps(bgr_[t], directions_, lamp_, curve_, 1);
+      std::memcpy(values->data() + per_row * static_cast<size_t>(a - y0), s.values.data(), s.values.size());
+    };
+    std::vector<std::thread> pool;
+    for (int t = 1; t < slices; ++t) pool.emplace_back(slice, t);
+    slice(0);
+    for (auto& th : pool) th.join();
+    for (const Status& st : status) RIG_TRY(st);
+    return Ok();
+  }
+
+ private:
+  MapBands& maps_;
+  const std::vector<Vec3>& directions_;
+  const std::array<double, 3>& lamp_;
+  const HdrCodeCurve& curve_;
+  int threads_;
+  std::vector<std::vector<cv::Mat>> bgr_;  // per slice, reused
+};
+
 }  // namespace
 
 cv::Rect PcaHdrChoiceRegion(int width, int height) {
@@ -125,11 +171,9 @@ Result<PcaSessionFit> FitPcaHdrFromBands(MapBands& maps, const std::vector<Vec3>
   const auto t2 = Clock::now();
   const PcaPlanePass pass{directions, po, solver, blocks, quant, basis.components,
                           out.width,  out.height, band_rows, threads, "pca of radiance maps"};
-  std::vector<cv::Mat> bgr;
+  BandCoder coder(maps, directions, lamp, out.curve, threads);
   RIG_TRY(WritePcaPlanes(pass, [&](int y0, int rows, std::vector<uint8_t>* values) -> Status {
-    RIG_TRY(ReadRows(maps, y0, y0 + rows, &bgr));
-    *values = SamplesFromMaps(bgr, directions, lamp, out.curve, threads).values;
-    return Ok();
+    return coder.Codes(y0, rows, values);
   }, out_folder, &out.planes));
   RIG_TRY(WritePcaInfo(out_folder, out.width, out.height, basis, quant, directions, po.jpeg_quality,
                        "", PcaHdrValues{out.curve, lamp, light_frame}));
