@@ -97,6 +97,11 @@ void HdrCurveSampler::Add(size_t map, size_t first_pixel, const cv::Mat& rows) {
   }
 }
 
+void HdrCurveSampler::Merge(const HdrCurveSampler& other) {
+  all_.insert(all_.end(), other.all_.begin(), other.all_.end());
+  positive_.insert(positive_.end(), other.positive_.begin(), other.positive_.end());
+}
+
 HdrCodeCurve HdrCurveSampler::Curve(const HdrCurveOptions& o) const {
   return CurveOfSample(all_, positive_, o);
 }

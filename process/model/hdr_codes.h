@@ -65,6 +65,9 @@ class HdrCurveSampler {
   // of the map. Not thread-safe.
   void Add(size_t map, size_t first_pixel, const cv::Mat& radiance_bgr_rows);
   HdrCodeCurve Curve(const HdrCurveOptions& options) const;
+  // Another sampler's values (of other rows of the same maps) added: the curve is the one of
+  // every row either was given, whatever the split.
+  void Merge(const HdrCurveSampler& other);
 
  private:
   size_t pixels_, stride_;

@@ -29,25 +29,52 @@ Status ReadRows(MapBands& maps, int y0, int y1, std::vector<cv::Mat>* bgr) {
   }
 }
 
+// Pass 2 over rows [y0, y1) of one band: the curve's sample-channels and the sampled pixels'
+// radiance (from subset index *next on; *next advanced past the rows).
+Status GatherRows(MapBands& maps, const std::vector<size_t>& subset, int y0, int y1,
+                  std::vector<cv::Mat>* bgr, HdrCurveSampler* sampler, size_t* next,
+                  std::vector<float>* sampled) {
+  const size_t w = static_cast<size_t>(maps.width()), lights = maps.count();
+  RIG_TRY(ReadRows(maps, y0, y1, bgr));
+  const size_t first = static_cast<size_t>(y0) * w, end = static_cast<size_t>(y1) * w;
+  for (size_t l = 0; l < lights; ++l) sampler->Add(l, first, (*bgr)[l]);
+  for (; *next < subset.size() && subset[*next] < end; ++*next)
+    for (size_t l = 0; l < lights; ++l)
+      std::memcpy(sampled->data() + (*next * lights + l) * 3,
+                  (*bgr)[l].ptr<float>() + (subset[*next] - first) * 3, 3 * sizeof(float));
+  return Ok();
+}
+
 // Pass 2: the curve's sample-channels of every map and the radiance of the components' sampled
-// pixels (subset.size() × lights × BGR floats, in subset order).
-Status GatherSample(MapBands& maps, const std::vector<size_t>& subset, int band_rows,
-                    HdrCurveSampler* sampler, std::vector<float>* sampled) {
-  const int w = maps.width(), h = maps.height();
-  const size_t lights = maps.count();
-  sampled->assign(subset.size() * lights * 3, 0.0f);
-  size_t next = 0;
-  std::vector<cv::Mat> bgr;
-  for (int y0 = 0; y0 < h; y0 += band_rows) {
-    const int y1 = std::min(h, y0 + band_rows);
-    RIG_TRY(ReadRows(maps, y0, y1, &bgr));
-    const size_t first = static_cast<size_t>(y0) * w, end = static_cast<size_t>(y1) * w;
-    for (size_t l = 0; l < lights; ++l) sampler->Add(l, first, bgr[l]);
-    for (; next < subset.size() && subset[next] < end; ++next)
-      for (size_t l = 0; l < lights; ++l)
-        std::memcpy(sampled->data() + (next * lights + l) * 3,
-                    bgr[l].ptr<float>() + (subset[next] - first) * 3, 3 * sizeof(float));
-  }
+// pixels (subset.size() × lights × BGR floats, in subset order). Maps that may be read from
+// several threads at once are read in `threads` slices of rows, each with its own sampler,
+// merged at the end (the curve's quantiles do not depend on the order of the values).
+Status GatherSample(MapBands& maps, const std::vector<size_t>& subset, int band_rows, int threads,
+                    const std::array<double, 3>& lamp, HdrCurveSampler* sampler,
+                    std::vector<float>* sampled) {
+  const int h = maps.height();
+  const size_t pixels = static_cast<size_t>(maps.width()) * h;
+  sampled->assign(subset.size() * maps.count() * 3, 0.0f);
+  const int slices = maps.concurrent() ? std::max(1, std::min(threads, h)) : 1;
+  std::vector<HdrCurveSampler> part(static_cast<size_t>(slices - 1),
+                                    HdrCurveSampler(maps.count(), pixels, lamp));
+  std::vector<Status> status(static_cast<size_t>(slices), Ok());
+  auto slice = [&](int t) {
+    const int a = h * t / slices, b = h * (t + 1) / slices;
+    HdrCurveSampler* s = t == 0 ? sampler : &part[t - 1];
+    size_t next = static_cast<size_t>(
+        std::lower_bound(subset.begin(), subset.end(), static_cast<size_t>(a) * maps.width()) -
+        subset.begin());
+    std::vector<cv::Mat> bgr;
+    for (int y0 = a; y0 < b && status[t].ok(); y0 += band_rows)
+      status[t] = GatherRows(maps, subset, y0, std::min(b, y0 + band_rows), &bgr, s, &next, sampled);
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < slices; ++t) pool.emplace_back(slice, t);
+  slice(0);
+  for (auto& th : pool) th.join();
+  for (const Status& st : status) RIG_TRY(st);
+  for (const auto& p : part) sampler->Merge(p);
   return Ok();
 }
 
@@ -152,7 +179,7 @@ Result<PcaSessionFit> FitPcaHdrFromBands(MapBands& maps, const std::vector<Vec3>
   const std::vector<size_t> subset = SamplePixels(pixels, po.basis_pixels, po.seed);
   HdrCurveSampler sampler(maps.count(), pixels, lamp);
   std::vector<float> sampled_radiance;
-  RIG_TRY(GatherSample(maps, subset, band_rows, &sampler, &sampled_radiance));
+  RIG_TRY(GatherSample(maps, subset, band_rows, o.threads, lamp, &sampler, &sampled_radiance));
   out.curve = sampler.Curve(PcaHdrCurveOptions(out.choice.curve, o.high));
   const LightSamples sampled = SampledCodes(sampled_radiance, subset.size(), directions, lamp, out.curve);
   sampled_radiance = {};
