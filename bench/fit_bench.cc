@@ -194,7 +194,6 @@ bool PcaLastFrame(const rig::MapStore& store, const std::vector<std::string>& ke
                   const std::string& scene) {
   rig::PcaHdrChoiceOptions o;
   o.threads = 2;
-  o.scratch = (folder / "pca-choice").string();
   if (std::getenv("RIG_BENCH_NO_SYNC") == nullptr) ::sync();
   auto t = Clock::now();
   auto bands = store.Bands(keys);
@@ -220,10 +219,11 @@ bool PcaLastFrame(const rig::MapStore& store, const std::vector<std::string>& ke
   for (const auto& e : fs::directory_iterator(folder / "pca-memory")) bytes += double(e.file_size());
   const double pixels = double(mem->width) * mem->height;
   std::printf("  %-7s %-7s pca k%-2d %5.2f B/px  after last map %7.2f s (choice %.2f on %dx%d, sample "
-              "%.2f, planes %.2f)  from files %7.2f s  same bytes: %s  peak RSS %.0f MB\n",
+              "%.2f, planes %.2f: codes %.2f solve %.2f JPEG %.2f)  from files %7.2f s  same bytes: %s  peak RSS %.0f MB\n",
               (std::to_string(mp) + " MP").c_str(), scene.c_str(), mem->components, bytes / pixels,
               after_last, mem->choice_s, mem->choice_region.width, mem->choice_region.height,
-              mem->gather_s, mem->write_s, batch, same ? "yes" : "NO", rss);
+              mem->gather_s, mem->write_s, mem->planes.source_s, mem->planes.solve_s,
+              mem->planes.encode_s, batch, same ? "yes" : "NO", rss);
   std::fflush(stdout);
   fs::remove_all(folder / "pca-files");
   fs::remove_all(folder / "pca-memory");

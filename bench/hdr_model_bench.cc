@@ -367,7 +367,6 @@ void InterpolationRow(const Reference& ref) {
 void HdrAutoRow(const Args& a, const Reference& ref) {
   rig::PcaHdrChoiceOptions o;
   o.threads = a.threads;
-  o.scratch = (a.dir / "pca-hdr-scratch").string();
   const auto t = Clock::now();
   rig::PcaHdrFit fit = Must(rig::FitPcaHdrAuto(ref.maps, ref.directions, ref.config.lamp.radiance_rgb,
                                                ref.config.light_frame, o));

@@ -106,7 +106,6 @@ Status FitSessionPca(const Session& session, MapBands& bands, const StreamFitInp
   PcaHdrChoiceOptions o;
   o.max_bytes_per_pixel = config.process.pca_max_bytes_per_pixel;
   o.threads = config.process.threads;
-  o.scratch = (model_dir / ".pca-choice").string();
   const fs::path out = model_dir / "pca";
   PcaSessionFit fit;
   RIG_TRY(WriteModelFolder(out.string(), [&](const std::string& dir) -> Status {

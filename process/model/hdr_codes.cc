@@ -97,6 +97,11 @@ void HdrCurveSampler::Add(size_t map, size_t first_pixel, const cv::Mat& rows) {
   }
 }
 
+void HdrCurveSampler::Merge(const HdrCurveSampler& other) {
+  all_.insert(all_.end(), other.all_.begin(), other.all_.end());
+  positive_.insert(positive_.end(), other.positive_.begin(), other.positive_.end());
+}
+
 HdrCodeCurve HdrCurveSampler::Curve(const HdrCurveOptions& o) const {
   return CurveOfSample(all_, positive_, o);
 }
@@ -145,6 +150,26 @@ float FirstOfCode(const HdrCodeCurve& curve, double lamp, int code) {
 HdrCodeTable::HdrCodeTable(const HdrCodeCurve& curve, double lamp) : curve_(curve), lamp_(lamp) {
   for (int k = 1; k <= 254; ++k) first_[k - 1] = FirstOfCode(curve, lamp, k);
   top_ = FirstOfCode(curve, lamp, 255);
+  // Buckets from first_[0]'s to top_'s (both finite when the curve has 255 codes; a curve whose
+  // top is +inf, or one without code 1, keeps no buckets and searches or calls HdrCode).
+  // Buckets from first_[0]'s to top_'s; none (every value searched) for a curve without both.
+  if (!(first_[0] < top_) || !std::isfinite(top_)) return;
+  uint32_t lo, hi;
+  std::memcpy(&lo, &first_[0], sizeof lo);
+  std::memcpy(&hi, &top_, sizeof hi);
+  bucket0_ = lo >> kBucketShift;
+  const uint32_t last = hi >> kBucketShift;
+  bucket_.assign(last - bucket0_ + 1, kMixed);
+  for (uint32_t b = bucket0_; b <= last; ++b) {
+    const uint32_t first_bits = std::max(b << kBucketShift, lo);
+    const uint32_t last_bits = std::min(((b + 1) << kBucketShift) - 1, hi - 1);
+    float f0, f1;
+    std::memcpy(&f0, &first_bits, sizeof f0);
+    std::memcpy(&f1, &last_bits, sizeof f1);
+    // The code rises with the radiance: one code at both ends is the bucket's only code.
+    const uint8_t c0 = Search(f0), c1 = Search(f1);
+    if (c0 == c1) bucket_[b - bucket0_] = c0;
+  }
 }
 
 LightSamples SamplesFromMaps(const std::vector<cv::Mat>& radiance_bgr,

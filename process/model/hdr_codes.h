@@ -8,6 +8,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -64,6 +65,9 @@ class HdrCurveSampler {
   // of the map. Not thread-safe.
   void Add(size_t map, size_t first_pixel, const cv::Mat& radiance_bgr_rows);
   HdrCodeCurve Curve(const HdrCurveOptions& options) const;
+  // Another sampler's values (of other rows of the same maps) added: the curve is the one of
+  // every row either was given, whatever the split.
+  void Merge(const HdrCurveSampler& other);
 
  private:
   size_t pixels_, stride_;
@@ -93,22 +97,36 @@ LightSamples SamplesFromMaps(const std::vector<cv::Mat>& radiance_bgr,
                              const HdrCodeCurve& curve, int threads = 1);
 // HdrCode of one channel by table: the smallest radiance of each code 1..255 found once (a
 // binary search over the floats' bit patterns, the code rising with the radiance), then each
-// value's code is its place among them — the same code as HdrCode for every float, without a
-// power or logarithm per sample. Beyond the code-255 threshold, and for NaN and infinities,
-// HdrCode itself.
+// value's code looked up by the top bits of its float (sign, exponent and 11 bits of mantissa:
+// one bucket of 2^12 consecutive floats) where every float of the bucket has one code, and
+// found by its place among the first radiances where a code starts inside the bucket — the
+// same code as HdrCode for every float, without a power or logarithm, and without a search
+// for most samples. Beyond the code-255 threshold, and for NaN and infinities, HdrCode itself.
 class HdrCodeTable {
  public:
   HdrCodeTable(const HdrCodeCurve& curve, double lamp);
   uint8_t operator()(float radiance) const {
     if (!(radiance > 0) || !(radiance < top_)) return HdrCode(radiance, lamp_, curve_);
-    return static_cast<uint8_t>(std::upper_bound(first_.begin(), first_.end(), radiance) - first_.begin());
+    if (radiance < first_[0]) return 0;
+    uint32_t bits;
+    std::memcpy(&bits, &radiance, sizeof bits);
+    const uint32_t b = (bits >> kBucketShift) - bucket0_;
+    const uint8_t code = b < bucket_.size() ? bucket_[b] : kMixed;
+    return code != kMixed ? code : Search(radiance);
   }
 
  private:
+  static constexpr int kBucketShift = 12;
+  static constexpr uint8_t kMixed = 0;  // a bucket where a code starts (code 0 never reaches here)
+  uint8_t Search(float radiance) const {
+    return static_cast<uint8_t>(std::upper_bound(first_.begin(), first_.end(), radiance) - first_.begin());
+  }
   HdrCodeCurve curve_;
   double lamp_;
   std::array<float, 254> first_;  // first_[k - 1]: the smallest radiance of code k, k = 1..254
   float top_;                     // the smallest of code 255
+  uint32_t bucket0_ = 0;          // the bucket of first_[0]
+  std::vector<uint8_t> bucket_;   // code of every float in buckets bucket0_.. up to top_'s; kMixed
 };
 
 // Reflectance maps (radiance ÷ lamp radiance), CV_32FC3 BGR.

@@ -183,6 +183,49 @@ TEST(HdrPca, ModelOfRadianceMapsDecodesToLinearReflectanceAndRadiance) {
   fs::remove_all(fs::path(dir).parent_path());
 }
 
+// What the per-byte choice scores (the model as its files would hold it, made in memory) is
+// what Save writes and Load reads back: the same bytes in all, the same planes, ranges and
+// basis, at two qualities; and the lossy planes do differ from the fitted ones.
+TEST(HdrPca, TheModelAsStoredInMemoryIsTheModelSavedAndLoadedBack) {
+  const HdrScene scene;
+  const auto maps = scene.Radiance({1, 1, 1});
+  const HdrCodeCurve curve{HdrCurve::kPower, 3, 0.01, 1.25};
+  PcaOptions o;
+  o.components = 7;
+  o.grid_resolution = 8;
+  auto m = FitPca(SamplesFromMaps(maps, scene.lights, {1, 1, 1}, curve), o);
+  ASSERT_TRUE(m.ok());
+  m->set_hdr({curve, {1, 1, 1}, {}});
+  const std::string dir = testing::FreshTempDir("hdr_pca_stored") + "/model";
+  for (int q : {80, 100}) {
+    m->set_jpeg_quality(q);
+    uint64_t bytes = 0;
+    auto mem = m->AsStored(&bytes);
+    ASSERT_TRUE(mem.ok()) << mem.error().ToString();
+    ASSERT_TRUE(m->Save(dir).ok());
+    auto back = PcaModel::Load(dir);
+    ASSERT_TRUE(back.ok()) << back.error().ToString();
+    EXPECT_EQ(bytes, FolderBytes(dir)) << q;
+    ASSERT_EQ(mem->planes().size(), back->planes().size());
+    int lossy = 0;
+    for (size_t p = 0; p < back->planes().size(); ++p) {
+      EXPECT_EQ(cv::norm(mem->planes()[p], back->planes()[p], cv::NORM_INF), 0) << q << " plane " << p;
+      lossy += cv::norm(m->planes()[p], back->planes()[p], cv::NORM_INF) > 0;
+    }
+    EXPECT_GT(lossy, 0) << q;
+    EXPECT_EQ(mem->basis().values, back->basis().values);
+    ASSERT_EQ(mem->quantisation().size(), back->quantisation().size());
+    for (size_t p = 0; p < back->quantisation().size(); ++p) {
+      EXPECT_EQ(mem->quantisation()[p].min, back->quantisation()[p].min);
+      EXPECT_EQ(mem->quantisation()[p].max, back->quantisation()[p].max);
+    }
+    EXPECT_EQ(mem->jpeg_quality(), q);
+    ASSERT_TRUE(mem->hdr().has_value());
+    EXPECT_EQ(mem->hdr()->curve.max, back->hdr()->curve.max);
+  }
+  fs::remove_all(fs::path(dir).parent_path());
+}
+
 TEST(HdrPca, BadValuesBlockIsRefusedNamingTheFile) {
   const HdrScene scene;
   const auto maps = scene.Radiance({1, 1, 1});
@@ -264,6 +307,11 @@ TEST(HdrCodes, TheCodeTableGivesHdrCodesOwnCodeForEveryFloat) {
       const uint8_t code = table(f);
       if (code != last) ++distinct;
       last = code;
+    }
+    // Every half (what a session's maps hold): the buckets' codes and the searched ones.
+    for (uint32_t h = 0; h < 65536; ++h) {
+      const float f = static_cast<float>(cv::float16_t::fromBits(static_cast<uint16_t>(h)));
+      if (table(f) != HdrCode(f, lamp, c)) ++mismatches;
     }
     EXPECT_EQ(mismatches, 0) << HdrCurveName(kind);
     EXPECT_GT(distinct, 200) << HdrCurveName(kind);  // the sweep crosses the codes

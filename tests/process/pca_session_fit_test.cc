@@ -73,7 +73,6 @@ class PcaSessionFitTest : public testing::Test {
     options_.qualities = {90};
     options_.resolutions = {8};
     options_.max_bytes_per_pixel = 1e9;
-    options_.scratch = (dir_ / "scratch").string();
   }
   void TearDown() override { fs::remove_all(dir_); }
 

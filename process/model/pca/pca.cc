@@ -738,23 +738,27 @@ cv::Mat PcaModel::Render(const Vec3& direction) const {
   return out;
 }
 
+cv::Mat PcaModel::PlaneFile(int j) const {
+  const int k = basis_.components;
+  cv::Mat rgb(height_, width_, CV_8UC3, cv::Scalar(0, 0, 0));
+  for (int c = 0; c < 3; ++c) {
+    const int p = 3 * j + c;
+    if (p >= k) continue;
+    const uint8_t* src = planes_[p].ptr<uint8_t>();
+    uint8_t* dst = rgb.ptr<uint8_t>();
+    const size_t n = static_cast<size_t>(width_) * height_;
+    for (size_t i = 0; i < n; ++i) dst[i * 3 + c] = src[i];
+  }
+  return rgb;
+}
+
 Status PcaModel::Save(const std::string& folder) const {
   std::error_code ec;
   fs::create_directories(folder, ec);
   if (ec) return MakeError(ErrorCode::kIo, folder, "cannot create the folder: {}", ec.message());
-  const int k = basis_.components;
-  const int files = (k + 2) / 3;
+  const int files = (basis_.components + 2) / 3;
   for (int j = 0; j < files; ++j) {
-    cv::Mat rgb(height_, width_, CV_8UC3, cv::Scalar(0, 0, 0));
-    for (int c = 0; c < 3; ++c) {
-      const int p = 3 * j + c;
-      if (p >= k) continue;
-      const uint8_t* src = planes_[p].ptr<uint8_t>();
-      uint8_t* dst = rgb.ptr<uint8_t>();
-      const size_t n = static_cast<size_t>(width_) * height_;
-      for (size_t i = 0; i < n; ++i) dst[i * 3 + c] = src[i];
-    }
-    RIG_TRY(WriteJpeg((fs::path(folder) / fmt::format("plane_{}.jpg", j)).string(), rgb,
+    RIG_TRY(WriteJpeg((fs::path(folder) / fmt::format("plane_{}.jpg", j)).string(), PlaneFile(j),
                       kPcaPlaneColor, jpeg_quality_));
   }
   return WritePcaInfo(folder, width_, height_, basis_, quant_, lights_, jpeg_quality_, near_lamp_,
@@ -813,12 +817,10 @@ Result<PcaHdrValues> HdrValuesFromJson(const nlohmann::json& j, const std::strin
 
 }  // namespace
 
-Status WritePcaInfo(const std::string& folder, int width, int height, const PcaBasis& basis,
-                    const std::vector<PlaneQuantisation>& quant,
-                    const std::vector<Vec3>& lights, int jpeg_quality,
-                    const std::string& near_lamp,
-                    const std::optional<PcaHdrValues>& hdr) {
-  std::error_code ec;
+std::string PcaInfoText(int width, int height, const PcaBasis& basis,
+                        const std::vector<PlaneQuantisation>& quant,
+                        const std::vector<Vec3>& lights, int jpeg_quality,
+                        const std::string& near_lamp, const std::optional<PcaHdrValues>& hdr) {
   const int k = basis.components;
   nlohmann::ordered_json info;
   info["width"] = width;
@@ -855,8 +857,18 @@ Status WritePcaInfo(const std::string& folder, int width, int height, const PcaB
                  {"eigenvalues", basis.eigenvalues}};
   if (!near_lamp.empty()) info["rig"]["near_lamp"] = near_lamp;
   if (hdr) info["rig"]["values"] = HdrValuesJson(*hdr);
+  return info.dump() + "\n";
+}
+
+Status WritePcaInfo(const std::string& folder, int width, int height, const PcaBasis& basis,
+                    const std::vector<PlaneQuantisation>& quant,
+                    const std::vector<Vec3>& lights, int jpeg_quality,
+                    const std::string& near_lamp,
+                    const std::optional<PcaHdrValues>& hdr) {
+  std::error_code ec;
   const fs::path path = fs::path(folder) / "info.json";
-  RIG_TRY(WriteFileAtomic(path, info.dump() + "\n"));
+  RIG_TRY(WriteFileAtomic(path, PcaInfoText(width, height, basis, quant, lights, jpeg_quality,
+                                            near_lamp, hdr)));
   // Planes of an earlier, larger model in the same folder would be counted as its bytes
   // and confuse a reader that lists files: this model's are plane_0 .. plane_{files-1}.
   for (int n = (basis.components + 2) / 3;; ++n) {
@@ -894,9 +906,7 @@ Status CheckPlaneHeaders(const std::string& folder, int files, int width, int he
 
 }  // namespace
 
-Result<PcaModel> PcaModel::Load(const std::string& folder) {
-  const std::string path = (fs::path(folder) / "info.json").string();
-  RIG_ASSIGN_OR_RETURN(nlohmann::json info, ReadJsonObjectFile(path));
+Result<PcaModel> PcaModel::FromInfo(const nlohmann::json& info, const std::string& path) {
   PcaModel m;
   try {
     if (info.at("type").get<std::string>() != "bilinear" ||
@@ -984,19 +994,55 @@ Result<PcaModel> PcaModel::Load(const std::string& folder) {
   } catch (const nlohmann::json::exception& e) {
     return MakeError(ErrorCode::kInvalidInput, path, "{}", e.what());
   }
+  return m;
+}
+
+Status PcaModel::AddPlaneFile(const cv::Mat& rgb, const std::string& plane) {
+  if (rgb.cols != width_ || rgb.rows != height_ || rgb.channels() != 3) {
+    return MakeError(ErrorCode::kInvalidInput, plane, "{}x{}x{}, info.json says {}x{}x3", rgb.cols,
+                     rgb.rows, rgb.channels(), width_, height_);
+  }
+  const int k = basis_.components;
+  const int first = static_cast<int>(planes_.size());
+  cv::Mat ch[3];
+  cv::split(rgb, ch);
+  for (int c = 0; c < 3 && first + c < k; ++c) planes_.push_back(ch[c].clone());
+  return Ok();
+}
+
+Result<PcaModel> PcaModel::Load(const std::string& folder) {
+  const std::string path = (fs::path(folder) / "info.json").string();
+  RIG_ASSIGN_OR_RETURN(nlohmann::json info, ReadJsonObjectFile(path));
+  RIG_ASSIGN_OR_RETURN(PcaModel m, FromInfo(info, path));
   const int k = m.basis_.components;
   RIG_TRY(CheckPlaneHeaders(folder, (k + 2) / 3, m.width_, m.height_));
   for (int j = 0; j < (k + 2) / 3; ++j) {
     const std::string plane = (fs::path(folder) / fmt::format("plane_{}.jpg", j)).string();
     RIG_ASSIGN_OR_RETURN(cv::Mat rgb, ReadJpeg(plane));
-    if (rgb.cols != m.width_ || rgb.rows != m.height_ || rgb.channels() != 3) {
-      return MakeError(ErrorCode::kInvalidInput, plane, "{}x{}x{}, info.json says {}x{}x3",
-                       rgb.cols, rgb.rows, rgb.channels(), m.width_, m.height_);
-    }
-    cv::Mat ch[3];
-    cv::split(rgb, ch);
-    for (int c = 0; c < 3 && 3 * j + c < k; ++c) m.planes_.push_back(ch[c].clone());
+    RIG_TRY(m.AddPlaneFile(rgb, plane));
   }
+  return m;
+}
+
+Result<PcaModel> PcaModel::AsStored(uint64_t* bytes) const {
+  const std::string text =
+      PcaInfoText(width_, height_, basis_, quant_, lights_, jpeg_quality_, near_lamp_, hdr_);
+  nlohmann::json info;
+  try {
+    info = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::exception& e) {
+    return MakeError(ErrorCode::kInternal, "pca info.json", "{}", e.what());
+  }
+  RIG_ASSIGN_OR_RETURN(PcaModel m, FromInfo(info, "info.json"));
+  uint64_t total = text.size();
+  for (int j = 0; j < (basis_.components + 2) / 3; ++j) {
+    RIG_ASSIGN_OR_RETURN(auto encoded, EncodeJpeg(PlaneFile(j), kPcaPlaneColor, jpeg_quality_));
+    total += encoded.size();
+    const std::string name = fmt::format("plane_{}.jpg", j);
+    RIG_ASSIGN_OR_RETURN(cv::Mat rgb, DecodeJpeg(encoded, name));
+    RIG_TRY(m.AddPlaneFile(rgb, name));
+  }
+  if (bytes != nullptr) *bytes = total;
   return m;
 }
 

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <nlohmann/json_fwd.hpp>
 #include <opencv2/core.hpp>
 
 #include "config/result.h"
@@ -136,8 +137,18 @@ class PcaModel {
   // created; files in it are replaced.
   Status Save(const std::string& folder) const;
   static Result<PcaModel> Load(const std::string& folder);
+  // The model exactly as Load would read back the folder Save writes, without the disk: the
+  // planes JPEG-encoded and decoded in memory (EncodeJpeg: the bytes WriteJpeg writes),
+  // info.json's text parsed back. *bytes (may be null): the folder's size, info.json and planes.
+  Result<PcaModel> AsStored(uint64_t* bytes) const;
+  void set_jpeg_quality(int quality) { jpeg_quality_ = quality; }
 
  private:
+  // info.json's fields (no planes yet); errors name `path`.
+  static Result<PcaModel> FromInfo(const nlohmann::json& info, const std::string& path);
+  // The next (up to) three planes from one plane file's decoded R, G, B.
+  Status AddPlaneFile(const cv::Mat& rgb, const std::string& plane);
+  cv::Mat PlaneFile(int j) const;  // plane file j as Save encodes it (R, G, B = planes 3j..)
   friend Result<PcaModel> FitPcaCoefficients(const LightSamples&, PcaBasis, const PcaOptions&,
                                              const std::vector<size_t>&, PcaFitStats*);
   int width_ = 0, height_ = 0;

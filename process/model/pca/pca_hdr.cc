@@ -2,9 +2,10 @@
 #include "process/model/pca/pca_hdr.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
-#include <filesystem>
+#include <thread>
 
 #include <fmt/format.h>
 
@@ -13,7 +14,6 @@
 namespace rig {
 namespace {
 
-namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
 HdrCodeCurve CurveOf(const PcaHdrCurveCandidate& c, const std::vector<cv::Mat>& radiance,
@@ -45,6 +45,9 @@ double HeldOutError(const ReflectanceModel& m, const std::vector<cv::Mat>& radia
 }
 
 // Every candidate of one curve, fitted to the fold's maps and scored at the held-out lamps.
+// The candidates of one (grid, components) share one fit — the qualities differ only in the
+// planes' encoding — and each is scored as it would be read back from its files
+// (PcaModel::AsStored: encoded and decoded in memory, the files' bytes counted).
 Status ScoreCurve(const PcaHdrCurveCandidate& cc, const std::vector<cv::Mat>& radiance,
                   const std::vector<Vec3>& directions, const std::vector<int>& held,
                   const std::array<double, 3>& lamp, const PcaHdrChoiceOptions& o,
@@ -62,28 +65,54 @@ Status ScoreCurve(const PcaHdrCurveCandidate& cc, const std::vector<cv::Mat>& ra
   const int kmax = *std::max_element(o.components.begin(), o.components.end());
   RIG_ASSIGN_OR_RETURN(PcaComponents comps, ComputePcaComponents(samples, po, kmax));
   const double pixels = static_cast<double>(samples.pixels());
-  const std::string folder = (fs::path(o.scratch) / "candidate").string();
   for (int res : o.resolutions)
-    for (int k : o.components)
+    for (int k : o.components) {
+      PcaOptions c = po;
+      c.components = k;
+      c.grid_resolution = res;
+      RIG_ASSIGN_OR_RETURN(PcaModel m, FitPcaWith(samples, comps, c));
+      m.set_hdr({curve, lamp, {}});
       for (int q : o.qualities) {
-        PcaOptions c = po;
-        c.components = k;
-        c.grid_resolution = res;
-        c.jpeg_quality = q;
-        RIG_ASSIGN_OR_RETURN(PcaModel m, FitPcaWith(samples, comps, c));
-        m.set_hdr({curve, lamp, {}});
-        RIG_TRY(m.Save(folder));
+        m.set_jpeg_quality(q);
+        uint64_t bytes = 0;
+        RIG_ASSIGN_OR_RETURN(PcaModel back, m.AsStored(&bytes));
         PcaHdrCandidate r;
         r.curve = cc.Name();
         r.components = k;
         r.resolution = res;
         r.quality = q;
-        r.bytes_per_pixel = static_cast<double>(FolderBytes(folder)) / pixels;
-        RIG_ASSIGN_OR_RETURN(PcaModel back, PcaModel::Load(folder));
+        r.bytes_per_pixel = static_cast<double>(bytes) / pixels;
         r.held_out_relative = HeldOutError(*WrapPca(std::move(back)), radiance, directions, held, lamp);
         r.within_budget = r.bytes_per_pixel <= o.max_bytes_per_pixel;
         out->push_back(r);
       }
+    }
+  return Ok();
+}
+
+// The curves' candidates in the order of o.curves (then grid, components, quality), the curves
+// scored on up to o.threads threads at once: each curve's work is its own, so the scores do not
+// depend on how many run together.
+Status ScoreCurves(const std::vector<cv::Mat>& radiance, const std::vector<Vec3>& directions,
+                   const std::vector<int>& held, const std::array<double, 3>& lamp,
+                   const PcaHdrChoiceOptions& o, std::vector<PcaHdrCandidate>* out) {
+  const size_t n = o.curves.size();
+  std::vector<std::vector<PcaHdrCandidate>> per(n);
+  std::vector<Status> status(n, Ok());
+  std::atomic<size_t> next{0};
+  auto worker = [&] {
+    for (size_t i = next++; i < n; i = next++)
+      status[i] = ScoreCurve(o.curves[i], radiance, directions, held, lamp, o, &per[i]);
+  };
+  std::vector<std::thread> pool;
+  const int threads = std::max(1, std::min<int>(o.threads, static_cast<int>(n)));
+  for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
+  worker();
+  for (auto& t : pool) t.join();
+  for (size_t i = 0; i < n; ++i) {
+    if (!status[i].ok()) return status[i];
+    out->insert(out->end(), per[i].begin(), per[i].end());
+  }
   return Ok();
 }
 
@@ -118,24 +147,14 @@ Result<PcaHdrFit> ChoosePcaHdr(const std::vector<cv::Mat>& radiance,
     return MakeError(ErrorCode::kInvalidInput, "pca", "{} maps for {} directions: 8 or more needed",
                      radiance.size(), directions.size());
   }
-  if (o.curves.empty() || o.components.empty() || o.resolutions.empty() || o.qualities.empty() ||
-      o.scratch.empty()) {
-    return MakeError(ErrorCode::kInvalidInput, "pca", "no candidates or no scratch folder");
+  if (o.curves.empty() || o.components.empty() || o.resolutions.empty() || o.qualities.empty()) {
+    return MakeError(ErrorCode::kInvalidInput, "pca", "no candidates");
   }
   std::vector<int> held;
   for (size_t l = 0; l < radiance.size(); l += static_cast<size_t>(std::max(2, o.validation_every)))
     held.push_back(static_cast<int>(l));
   PcaHdrFit fit;
-  std::error_code ec;
-  fs::create_directories(o.scratch, ec);
-  for (const auto& cc : o.curves) {
-    Status st = ScoreCurve(cc, radiance, directions, held, lamp, o, &fit.candidates);
-    if (!st.ok()) {
-      fs::remove_all(o.scratch, ec);
-      return st.error();
-    }
-  }
-  fs::remove_all(o.scratch, ec);
+  RIG_TRY(ScoreCurves(radiance, directions, held, lamp, o, &fit.candidates));
   for (size_t i = 0; i < fit.candidates.size(); ++i) {
     const auto& c = fit.candidates[i];
     if (c.within_budget && (fit.best < 0 || c.held_out_relative < fit.candidates[fit.best].held_out_relative))

@@ -1,6 +1,6 @@
 // The PCA model of a session's radiance maps, its value curve and size chosen per byte:
 // every candidate (curve, components, grid, JPEG quality) fitted without every n-th lamp,
-// written as it ships, read back and scored in linear reflectance at the lamps held out; the
+// encoded as it ships, decoded back (in memory: the files' own bytes) and scored in linear reflectance at the lamps held out; the
 // smallest candidate within a tolerance of the best that fits the byte budget is fitted again
 // on every lamp. Everything comes from the maps given, so run inside a fold it is a choice made
 // inside the fold. When no candidate fits the budget (a small image: the grid is stored
@@ -35,8 +35,7 @@ struct PcaHdrChoiceOptions {
   double tolerance = 0.01;   // relative: within 1% of the best held-out error
   int validation_every = 6;  // every n-th lamp held out
   double high = 0.9999;      // the curve's max at this quantile of ρ
-  int threads = 2;
-  std::string scratch;       // folder for the candidates' files (created; removed after)
+  int threads = 2;           // the curves' candidates are scored this many at once
 };
 
 struct PcaHdrCandidate {

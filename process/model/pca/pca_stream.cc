@@ -302,7 +302,10 @@ Status WritePcaPlanes(const PcaPlanePass& pp, const PcaBandSource& source,
     band.height = rows;
     const size_t n = band.pixels();
     band.values.resize(n * dim);
+    auto t = Clock::now();
     RIG_TRY(source(y0, rows, &band.values));
+    out->source_s += PcaSeconds(t);
+    t = Clock::now();
     if (band.values.size() != n * dim) {
       return MakeError(ErrorCode::kInternal, pp.context, "a band of {} values for {} pixels", band.values.size(), n);
     }
@@ -313,22 +316,36 @@ Status WritePcaPlanes(const PcaPlanePass& pp, const PcaBandSource& source,
     }
     pr.pending.insert(pr.pending.end(), band.values.begin(), band.values.end());
     SolveBlocksUpTo(pp, static_cast<size_t>(y0 + rows) * w, threads, &pr);
-    // Whole rows solved: to the files.
+    out->solve_s += PcaSeconds(t);
+    t = Clock::now();
+    // Whole rows solved: to the files, each file's encoder on one of the threads (the files
+    // are independent, so their bytes do not depend on it).
     const int full_rows = static_cast<int>((pr.solved_end - pr.out_start) / w);
     if (full_rows > 0) {
       const size_t used = static_cast<size_t>(full_rows) * w * 3;
-      for (int j = 0; j < files; ++j) {
-        RIG_TRY(writers[j]->Write(cv::Mat(full_rows, w, CV_8UC3, pr.rgb[j].data())));
-        pr.rgb[j].erase(pr.rgb[j].begin(), pr.rgb[j].begin() + static_cast<std::ptrdiff_t>(used));
-      }
+      std::vector<Status> written(files, Ok());
+      OnThreads(std::min(threads, files), [&](int th) {
+        for (int j = th; j < files; j += std::min(threads, files)) {
+          written[j] = writers[j]->Write(cv::Mat(full_rows, w, CV_8UC3, pr.rgb[j].data()));
+          pr.rgb[j].erase(pr.rgb[j].begin(), pr.rgb[j].begin() + static_cast<std::ptrdiff_t>(used));
+        }
+      });
+      for (const Status& st : written) RIG_TRY(st);
       pr.out_start += static_cast<size_t>(full_rows) * w;
     }
+    out->encode_s += PcaSeconds(t);
   }
   if (pr.out_start != pixels || pr.block_next != pp.blocks.size()) {
     return MakeError(ErrorCode::kInternal, pp.context, "{} of {} pixels written", pr.out_start,
                      pixels);
   }
-  for (auto& wr : writers) RIG_TRY(wr->Finish());
+  const auto t_finish = Clock::now();
+  std::vector<Status> finished(files, Ok());
+  OnThreads(std::min(threads, files), [&](int th) {
+    for (int j = th; j < files; j += std::min(threads, files)) finished[j] = writers[j]->Finish();
+  });
+  for (const Status& st : finished) RIG_TRY(st);
+  out->encode_s += PcaSeconds(t_finish);
   for (int t = 0; t < threads; ++t) {
     out->stats.masked_samples += pr.masked[t];
     out->stats.refitted_pixels += pr.refitted[t];

@@ -33,6 +33,9 @@ struct PcaStreamFit {
   double gather_s = 0;            // pass 1: the seeded pixel sample and the central crop
   double choice_s = 0;            // components, the size choice, the basis, the planes' ranges
   double write_s = 0;             // pass 2: every pixel's coefficients, the planes, info.json
+  // Pass 2's parts (WritePcaPlanes): the bands' samples from the source, the coefficients
+  // solved and quantised (with the masked-sample counts), the JPEG encoding and files.
+  double source_s = 0, solve_s = 0, encode_s = 0;
 };
 
 // What a capture's samples take in memory, pixels × lights × 3 bytes (values only; the

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstring>
 #include <exception>
+#include <thread>
 
 #include <fmt/format.h>
 
@@ -28,25 +29,52 @@ Status ReadRows(MapBands& maps, int y0, int y1, std::vector<cv::Mat>* bgr) {
   }
 }
 
+// Pass 2 over rows [y0, y1) of one band: the curve's sample-channels and the sampled pixels'
+// radiance (from subset index *next on; *next advanced past the rows).
+Status GatherRows(MapBands& maps, const std::vector<size_t>& subset, int y0, int y1,
+                  std::vector<cv::Mat>* bgr, HdrCurveSampler* sampler, size_t* next,
+                  std::vector<float>* sampled) {
+  const size_t w = static_cast<size_t>(maps.width()), lights = maps.count();
+  RIG_TRY(ReadRows(maps, y0, y1, bgr));
+  const size_t first = static_cast<size_t>(y0) * w, end = static_cast<size_t>(y1) * w;
+  for (size_t l = 0; l < lights; ++l) sampler->Add(l, first, (*bgr)[l]);
+  for (; *next < subset.size() && subset[*next] < end; ++*next)
+    for (size_t l = 0; l < lights; ++l)
+      std::memcpy(sampled->data() + (*next * lights + l) * 3,
+                  (*bgr)[l].ptr<float>() + (subset[*next] - first) * 3, 3 * sizeof(float));
+  return Ok();
+}
+
 // Pass 2: the curve's sample-channels of every map and the radiance of the components' sampled
-// pixels (subset.size() × lights × BGR floats, in subset order).
-Status GatherSample(MapBands& maps, const std::vector<size_t>& subset, int band_rows,
-                    HdrCurveSampler* sampler, std::vector<float>* sampled) {
-  const int w = maps.width(), h = maps.height();
-  const size_t lights = maps.count();
-  sampled->assign(subset.size() * lights * 3, 0.0f);
-  size_t next = 0;
-  std::vector<cv::Mat> bgr;
-  for (int y0 = 0; y0 < h; y0 += band_rows) {
-    const int y1 = std::min(h, y0 + band_rows);
-    RIG_TRY(ReadRows(maps, y0, y1, &bgr));
-    const size_t first = static_cast<size_t>(y0) * w, end = static_cast<size_t>(y1) * w;
-    for (size_t l = 0; l < lights; ++l) sampler->Add(l, first, bgr[l]);
-    for (; next < subset.size() && subset[next] < end; ++next)
-      for (size_t l = 0; l < lights; ++l)
-        std::memcpy(sampled->data() + (next * lights + l) * 3,
-                    bgr[l].ptr<float>() + (subset[next] - first) * 3, 3 * sizeof(float));
-  }
+// pixels (subset.size() × lights × BGR floats, in subset order). Maps that may be read from
+// several threads at once are read in `threads` slices of rows, each with its own sampler,
+// merged at the end (the curve's quantiles do not depend on the order of the values).
+Status GatherSample(MapBands& maps, const std::vector<size_t>& subset, int band_rows, int threads,
+                    const std::array<double, 3>& lamp, HdrCurveSampler* sampler,
+                    std::vector<float>* sampled) {
+  const int h = maps.height();
+  const size_t pixels = static_cast<size_t>(maps.width()) * h;
+  sampled->assign(subset.size() * maps.count() * 3, 0.0f);
+  const int slices = maps.concurrent() ? std::max(1, std::min(threads, h)) : 1;
+  std::vector<HdrCurveSampler> part(static_cast<size_t>(slices - 1),
+                                    HdrCurveSampler(maps.count(), pixels, lamp));
+  std::vector<Status> status(static_cast<size_t>(slices), Ok());
+  auto slice = [&](int t) {
+    const int a = h * t / slices, b = h * (t + 1) / slices;
+    HdrCurveSampler* s = t == 0 ? sampler : &part[t - 1];
+    size_t next = static_cast<size_t>(
+        std::lower_bound(subset.begin(), subset.end(), static_cast<size_t>(a) * maps.width()) -
+        subset.begin());
+    std::vector<cv::Mat> bgr;
+    for (int y0 = a; y0 < b && status[t].ok(); y0 += band_rows)
+      status[t] = GatherRows(maps, subset, y0, std::min(b, y0 + band_rows), &bgr, s, &next, sampled);
+  };
+  std::vector<std::thread> pool;
+  for (int t = 1; t < slices; ++t) pool.emplace_back(slice, t);
+  slice(0);
+  for (auto& th : pool) th.join();
+  for (const Status& st : status) RIG_TRY(st);
+  for (const auto& p : part) sampler->Merge(p);
   return Ok();
 }
 
@@ -59,10 +87,58 @@ LightSamples SampledCodes(const std::vector<float>& sampled, size_t count,
   s.height = 1;
   s.directions = directions;
   s.values.resize(sampled.size());
+  // By table: HdrCode's own codes (HdrCodeTable), without a power per sample.
+  const std::array<HdrCodeTable, 3> code = {HdrCodeTable(curve, lamp[0]), HdrCodeTable(curve, lamp[1]),
+                                            HdrCodeTable(curve, lamp[2])};
   for (size_t i = 0; i < sampled.size(); i += 3)
-    for (int c = 0; c < 3; ++c) s.values[i + c] = HdrCode(sampled[i + (2 - c)], lamp[c], curve);
+    for (int c = 0; c < 3; ++c) s.values[i + c] = code[c](sampled[i + (2 - c)]);
   return s;
 }
+
+// A band's codes, laid out as LightSamples::values. A source that may be read from several
+// threads at once (the maps in memory) is read and coded in row slices, one per thread, each
+// slice's codes in its place (pixel-major, so the slices are contiguous); otherwise read once
+// and coded on the threads by map. The codes are the same either way.
+class BandCoder {
+ public:
+  BandCoder(MapBands& maps, const std::vector<Vec3>& directions, const std::array<double, 3>& lamp,
+            const HdrCodeCurve& curve, int threads)
+      : maps_(maps), directions_(directions), lamp_(lamp), curve_(curve),
+        threads_(std::max(1, threads)), bgr_(static_cast<size_t>(threads_)) {}
+
+  Status Codes(int y0, int rows, std::vector<uint8_t>* values) {
+    const int slices = maps_.concurrent() ? std::min(threads_, rows) : 1;
+    if (slices == 1) {
+      RIG_TRY(ReadRows(maps_, y0, y0 + rows, &bgr_[0]));
+      *values = SamplesFromMaps(bgr_[0], directions_, lamp_, curve_, threads_).values;
+      return Ok();
+    }
+    const size_t per_row = static_cast<size_t>(maps_.width()) * maps_.count() * 3;
+    values->resize(per_row * static_cast<size_t>(rows));
+    std::vector<Status> status(static_cast<size_t>(slices), Ok());
+    auto slice = [&](int t) {
+      const int a = y0 + rows * t / slices, b = y0 + rows * (t + 1) / slices;
+      status[t] = ReadRows(maps_, a, b, &bgr_[t]);
+      if (!status[t].ok()) return;
+      const LightSamples s = SamplesFromMaps(bgr_[t], directions_, lamp_, curve_, 1);
+      std::memcpy(values->data() + per_row * static_cast<size_t>(a - y0), s.values.data(), s.values.size());
+    };
+    std::vector<std::thread> pool;
+    for (int t = 1; t < slices; ++t) pool.emplace_back(slice, t);
+    slice(0);
+    for (auto& th : pool) th.join();
+    for (const Status& st : status) RIG_TRY(st);
+    return Ok();
+  }
+
+ private:
+  MapBands& maps_;
+  const std::vector<Vec3>& directions_;
+  const std::array<double, 3>& lamp_;
+  const HdrCodeCurve& curve_;
+  int threads_;
+  std::vector<std::vector<cv::Mat>> bgr_;  // per slice, reused
+};
 
 }  // namespace
 
@@ -103,7 +179,7 @@ Result<PcaSessionFit> FitPcaHdrFromBands(MapBands& maps, const std::vector<Vec3>
   const std::vector<size_t> subset = SamplePixels(pixels, po.basis_pixels, po.seed);
   HdrCurveSampler sampler(maps.count(), pixels, lamp);
   std::vector<float> sampled_radiance;
-  RIG_TRY(GatherSample(maps, subset, band_rows, &sampler, &sampled_radiance));
+  RIG_TRY(GatherSample(maps, subset, band_rows, o.threads, lamp, &sampler, &sampled_radiance));
   out.curve = sampler.Curve(PcaHdrCurveOptions(out.choice.curve, o.high));
   const LightSamples sampled = SampledCodes(sampled_radiance, subset.size(), directions, lamp, out.curve);
   sampled_radiance = {};
@@ -122,19 +198,18 @@ Result<PcaSessionFit> FitPcaHdrFromBands(MapBands& maps, const std::vector<Vec3>
   const auto t2 = Clock::now();
   const PcaPlanePass pass{directions, po, solver, blocks, quant, basis.components,
                           out.width,  out.height, band_rows, threads, "pca of radiance maps"};
-  std::vector<cv::Mat> bgr;
+  BandCoder coder(maps, directions, lamp, out.curve, threads);
   RIG_TRY(WritePcaPlanes(pass, [&](int y0, int rows, std::vector<uint8_t>* values) -> Status {
-    RIG_TRY(ReadRows(maps, y0, y0 + rows, &bgr));
-    *values = SamplesFromMaps(bgr, directions, lamp, out.curve, threads).values;
-    return Ok();
+    return coder.Codes(y0, rows, values);
   }, out_folder, &out.planes));
   RIG_TRY(WritePcaInfo(out_folder, out.width, out.height, basis, quant, directions, po.jpeg_quality,
                        "", PcaHdrValues{out.curve, lamp, light_frame}));
   out.write_s = Since(t2);
   out.time_s = Since(t0);
   Log("process")->info("pca of radiance maps: {} (choice {:.2f} s on {}x{}, sample {:.2f} s, "
-                       "planes {:.2f} s)", out.choice.reason, out.choice_s, r.width, r.height,
-                       out.gather_s, out.write_s);
+                       "planes {:.2f} s: codes {:.2f}, solve {:.2f}, JPEG {:.2f})",
+                       out.choice.reason, out.choice_s, r.width, r.height, out.gather_s,
+                       out.write_s, out.planes.source_s, out.planes.solve_s, out.planes.encode_s);
   return out;
 }
 
