@@ -76,16 +76,25 @@ struct GridModelError {
   PcaBasis full_basis;           // on all lights, for sizes
 };
 
+// The lights held out to score the candidates: every validation_every-th.
+std::vector<int> HeldOutLights(int lights, const PcaChoiceOptions& o) {
+  std::vector<int> held;
+  for (int l = 0; l < lights; l += std::max(2, o.validation_every)) held.push_back(l);
+  return held;
+}
+
 // 1. Model error at held-out lights, for every grid and every number of components: the
 //    components without the validation lights (exact, from the kept covariance), the grid
 //    fitted to the others, coefficients of a sample of pixels through it.
 Result<std::vector<GridModelError>> HeldOutModelErrors(const LightSamples& s,
                                                        const PcaComponents& comps,
-                                                       const PcaChoiceOptions& o, int kmax) {
-  const int lights = s.lights();
-  std::vector<int> held;
-  for (int l = 0; l < lights; l += std::max(2, o.validation_every)) held.push_back(l);
-  const PcaComponents train = PcaComponentsWithout(comps, held, kmax);
+                                                       const PcaChoiceOptions& o, int* kmax_io) {
+  const std::vector<int> held = HeldOutLights(s.lights(), o);
+  const PcaComponents train = PcaComponentsWithout(comps, held, *kmax_io);
+  // No more components than the other lights' samples span (fewer where some are degenerate).
+  *kmax_io = std::min<int>(*kmax_io, static_cast<int>(train.vectors.cols()));
+  const int kmax = *kmax_io;
+  if (kmax < 1) return MakeError(ErrorCode::kInvalidInput, "pca choice", "too few lights");
   std::vector<size_t> eval;
   const size_t step = std::max<size_t>(1, comps.subset.size() / o.validation_pixels);
   for (size_t i = 0; i < comps.subset.size(); i += step) eval.push_back(i);  // into `sampled`
@@ -240,7 +249,7 @@ Result<PcaChoice> ChoosePca(const PcaChoiceInput& in, const PcaComponents& comps
     return MakeError(ErrorCode::kInvalidInput, "pca choice", "no candidates");
   }
   const double pixels = static_cast<double>(in.pixels);
-  RIG_ASSIGN_OR_RETURN(std::vector<GridModelError> by_grid, HeldOutModelErrors(s, comps, o, kmax));
+  RIG_ASSIGN_OR_RETURN(std::vector<GridModelError> by_grid, HeldOutModelErrors(s, comps, o, &kmax));
   const PcaBasis& mid_basis = by_grid[by_grid.size() / 2].full_basis;
   RIG_ASSIGN_OR_RETURN(JpegCost jpeg, JpegCosts(in.crop, mid_basis, o, kmax, pixels));
   const std::vector<double> basis_power = BasisPower(mid_basis, s.directions, kmax);
