@@ -18,8 +18,9 @@
 #
 # What is generated (nothing outside the folder is read or written; no systemd, no cgroups, so it
 # runs inside a container): a random munge key, its own munged socket, slurm.conf with two free
-# TCP ports on 127.0.0.1, proctrack/linuxproc, task/none, jobacct_gather/linux (peaks of RSS
-# sampled every 5 s), cons_tres with cores and memory as consumable resources, one partition
+# TCP ports on 127.0.0.1, proctrack/linuxproc, task/none, jobacct_gather/linux (RSS sampled every
+# second, and a job over its --mem killed at the sample that finds it so: OverMemoryKill, the
+# enforcement a cluster without cgroups has), cons_tres with cores and memory as consumable resources, one partition
 # `debug` (default) holding this host, and the completed jobs logged by jobcomp/filetxt in
 # DIR/jobcomp.txt (their state, run time, CPUs and memory asked): sacct needs slurmdbd and a
 # MySQL server, which this set-up does without, so sacct answers nothing here and the job
@@ -118,7 +119,8 @@ SlurmdDebug=info
 ProctrackType=proctrack/linuxproc
 TaskPlugin=task/none
 JobAcctGatherType=jobacct_gather/linux
-JobAcctGatherFrequency=task=5
+JobAcctGatherFrequency=task=1
+JobAcctGatherParams=OverMemoryKill
 AccountingStorageType=accounting_storage/none
 JobCompType=jobcomp/filetxt
 JobCompLoc=${dir}/jobcomp.txt

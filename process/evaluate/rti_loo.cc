@@ -70,9 +70,10 @@ Result<RtiLooRow> PcaRow(const RtiCapture& cap, const PcaChoiceOptions& co,
   row.family = "pca-bilinear";
   // What the same choice takes on every image, as `rig fit` would.
   const PcaOptions& chosen = fit.choice.options;
-  row.setting = fmt::format("{}; all images: k {}, {}x{} grid, q{} (of {} candidates)", setting,
+  const size_t n_candidates = fit.choice.candidates.size();
+  row.setting = fmt::format("{}; all images: k {}, {}x{} grid, q{} (of {} candidate{})", setting,
                             chosen.components, chosen.grid_resolution, chosen.grid_resolution,
-                            chosen.jpeg_quality, fit.choice.candidates.size());
+                            chosen.jpeg_quality, n_candidates, n_candidates == 1 ? "" : "s");
   row.protocol = Protocol(static_cast<int>(folds.size()), cap.samples.lights());
   row.psnr_mean_mse_db = score->psnr_mean_mse_db;
   row.psnr_median_db = score->psnr_median_db;

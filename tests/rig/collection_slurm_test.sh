@@ -100,9 +100,11 @@ has_lp=0
 # Snakemake 7.21's Slurm executor asks for the state of its jobs every 33 s unless told at most
 # 1/s; on a one-node cluster that wait would be most of the test's time.
 fast="--max-status-checks-per-second 1"
-# Run 1, in the background; the .lp's fit is cancelled (scancel) while it runs.
+# Run 1, in the background; the .lp's fit is cancelled (scancel) while it runs. Without the
+# profile's retries (which would submit the cancelled job again within the run): the rerun, a
+# second snakemake, is what picks it up.
 t0=$(date +%s.%N)
-snakemake --profile profiles/slurm $fast >"$work/slurm1.log" 2>&1 &
+snakemake --profile profiles/slurm $fast --retries 0 >"$work/slurm1.log" 2>&1 &
 snake=$!
 cancelled=""
 if [ "$has_lp" -eq 1 ]; then
@@ -168,9 +170,24 @@ t3=$(date +%s.%N)
 echo "$drained" >"$work/drained"
 echo "$t1 - $t0" | bc >"$work/slurm1.wall"
 echo "$t3 - $t2" | bc >"$work/slurm2.wall"
+
+# Run 3: the .lp's fit run again (--forcerun) asking for far less memory than it uses (60 MB, as
+# written: from_image_size: false); the cluster kills it over its --mem (OverMemoryKill), the
+# profile's retries submit it again asking for twice as much each time, and it ends well. The
+# collection's config.yaml is put back byte for byte afterwards.
+rc3=0
+if [ "$has_lp" -eq 1 ]; then
+  cp -- config.yaml "$work/config.yaml.orig"
+  grep -q '^  fit_lp: {threads: 2, mem_mb: 1000}$' config.yaml ||
+      { cat config.yaml; echo "FAIL: config.yaml has no fit_lp line to lower"; exit 1; }
+  sed -i 's/^  fit_lp: {threads: 2, mem_mb: 1000}$/  fit_lp: {threads: 2, mem_mb: 60, from_image_size: false}/' config.yaml
+  snakemake --profile profiles/slurm $fast --retries 3 --forcerun fit_lp >"$work/slurm3.log" 2>&1 || rc3=$?
+  cp -- "$work/config.yaml.orig" config.yaml
+  grep -c 'exceeded memory limit' "$RIG_SLURM_DIR/log/slurmd.log" >"$work/oom.count" || echo 0 >"$work/oom.count"
+fi
 cp -- "$RIG_SLURM_DIR/jobcomp.txt" "$work/jobcomp.txt" 2>/dev/null || : >"$work/jobcomp.txt"
 
-python3 - "$work" "$rc1" "$rc2" "$cancelled" "$has_lp" "$left_behind" <<'EOF_PY'
+python3 - "$work" "$rc1" "$rc2" "$cancelled" "$has_lp" "$left_behind" "$rc3" <<'EOF_PY'
 """Checks the two Slurm runs against each other, against Slurm's job records and against the
 local run; prints the figures docs/collection.md quotes."""
 import csv, os, re, sys
@@ -179,6 +196,7 @@ from pathlib import Path
 
 work, rc1, rc2, cancelled, has_lp = Path(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4], sys.argv[5] == "1"
 left_behind = sys.argv[6] == "1"
+rc3 = int(sys.argv[7])
 fails = []
 def check(ok, what):
     print(("ok   " if ok else "FAIL ") + what)
@@ -284,6 +302,31 @@ if has_lp:
     check(not any("S1" in k or "S2" in k or "S3" in k for k in second), "no session job ran again")
     drained = (work / "drained").read_text().strip()
     check(bool(drained), "the node drained mid-run held the next jobs" + (f" ({drained})" if drained else ""))
+
+# The job over its memory: each attempt a Slurm job asking for twice the last one's memory, those
+# killed over it FAILED in Slurm's records (slurmd logged each kill), the last COMPLETED, and
+# the run did the fit and what follows from it, no session job.
+if has_lp:
+    log3 = (work / "slurm3.log").read_text()
+    b3, d3, _ = jobs(log3)
+    check(rc3 == 0, f"the run with the fit's memory too small ends well (exit {rc3})")
+    fit_ids = [i for i, b in b3.items() if b["rule"] == "fit_lp"]
+    subs = {}
+    for a, b in re.findall(r"Job (\d+) has been submitted with SLURM jobid (\d+)", log3):
+        subs.setdefault(int(a), []).append(b)
+    tries = subs.get(fit_ids[0], []) if fit_ids else []
+    recs = [comp.get(j, {}) for j in tries]
+    mems = [dict(t.split("=", 1) for t in r.get("Tres", "").split(",") if "=" in t).get("mem") for r in recs]
+    states = [r.get("JobState") for r in recs]
+    want_mems = [f"{60 * 2 ** k}M" for k in range(len(tries))]
+    oom = int((work / "oom.count").read_text().split()[0] or 0)
+    check(len(tries) >= 2 and states[-1] == "COMPLETED" and all(x == "FAILED" for x in states[:-1])
+          and mems == want_mems and oom >= len(tries) - 1,
+          f"the fit over its memory: Slurm jobs {tries}, {states}, mem {mems} (doubling from 60M), "
+          f"{oom} kill(s) over the memory limit in slurmd's log")
+    ran3 = {key(b) for i, b in b3.items() if i in d3}
+    check("fit_lp[name=icon__dirs]" in ran3 and not any("S1" in k or "S2" in k or "S3" in k for k in ran3),
+          f"it reran the fit and what follows from it, no session job: {sorted(ran3)}")
 
 # Outputs: the local run's and the Slurm run's trees (the sessions and the collection folder),
 # byte for byte. Not compared: what records how or how long a job ran (logs/, benchmarks/,
