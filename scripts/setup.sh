@@ -15,8 +15,9 @@ packages=(
   libspdlog-dev libfmt-dev libtomlplusplus-dev libcli11-dev nlohmann-json3-dev
   zlib1g-dev
   # collections (rig collection: share/rig/Snakefile); a one-node Slurm cluster on localhost
-  # for the test that runs a collection as Slurm jobs (scripts/slurm-local.sh)
-  snakemake slurm-wlm munge
+  # for the test that runs a collection as Slurm jobs (scripts/slurm-local.sh), with its
+  # accounting (sacct: slurmdbd on a MariaDB server of the cluster's own)
+  snakemake slurm-wlm munge slurmdbd mariadb-server
   # rig daemon: its HTTP+JSON API; chromium: the status page tested in a headless browser
   libcpp-httplib-dev chromium
   # tests and benchmarks (libltdl-dev, xz-utils: building libgphoto2's virtual camera)

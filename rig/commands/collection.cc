@@ -104,8 +104,10 @@ int RunInit(int argc, char** argv) {
   const std::vector<std::pair<fs::path, fs::path>> copies = {
       {*share / "Snakefile", d / "workflow" / "Snakefile"},
       {*share / "local" / "config.yaml", d / "profiles" / "local" / "config.yaml"},
-      {*share / "slurm" / "config.yaml", d / "profiles" / "slurm" / "config.yaml"}};
-  for (const auto& p : {cfg, snakefile, copies[0].second, copies[1].second, copies[2].second}) {
+      {*share / "slurm" / "config.yaml", d / "profiles" / "slurm" / "config.yaml"},
+      {*share / "slurm" / "status.py", d / "profiles" / "slurm" / "status.py"}};
+  for (const auto& p : {cfg, snakefile, copies[0].second, copies[1].second, copies[2].second,
+                        copies[3].second}) {
     if (fs::exists(p, ec)) {
       return ReportError("collection", MakeError(ErrorCode::kInvalidInput, p.string(),
                                                  "exists; nothing is overwritten"));

@@ -158,6 +158,8 @@ class CollectionCommand : public ::testing::Test {
               testing::ReadText(testing::SourceDir() + "/share/rig/Snakefile"));
     EXPECT_EQ(testing::ReadText((c / "profiles/slurm/config.yaml").string()),
               testing::ReadText(testing::SourceDir() + "/share/rig/slurm/config.yaml"));
+    EXPECT_EQ(testing::ReadText((c / "profiles/slurm/status.py").string()),
+              testing::ReadText(testing::SourceDir() + "/share/rig/slurm/status.py"));
     EXPECT_THAT(testing::ReadText((c / "Snakefile").string()), HasSubstr("include: \"workflow/Snakefile\""));
     return c;
   }
@@ -337,8 +339,8 @@ TEST_F(CollectionCommand, LinkLoopsInTheRootAreSkippedWithAWarningAndPlanningEnd
   EXPECT_EQ(Keys(Jobs(plan.log)).count("merge[name=loop__deep__L1]"), 0u) << plan.log;
 }
 
-// Snakemake 7.21's Slurm executor writes the collection folder into sbatch's shell line
-// unquoted: on Slurm the workflow refuses a folder a shell would split, before any job; the
+// Snakemake 7.21 writes the collection folder into each cluster job's shell script quoted only
+// as Python quotes a string: on Slurm the workflow refuses a folder a shell would split, before any job; the
 // same folder runs locally, and a plain one plans on Slurm.
 TEST_F(CollectionCommand, OnSlurmAFolderAShellWouldSplitIsRefusedBeforeAnyJob) {
   const fs::path root = Root("sroot", {"S1"});
