@@ -357,5 +357,24 @@ TEST(SelectionTable, SaysIllConditionedAndGivesTheErrorRelativeToTheSamples) {
   EXPECT_EQ(LooRelativeCell(0.1, 0), "");
 }
 
+TEST(FitReportMarkdown, ARankDeficientOrderIsCalledIllConditionedNotInf) {
+  FitOutput out;
+  OrderReport fine;
+  fine.order = 1, fine.terms = 4, fine.supported = true, fine.loo_rmse = 0.05, fine.condition = 3.2;
+  fine.solved_condition = 3.2;
+  OrderReport deficient = fine;
+  deficient.order = 4, deficient.terms = 25, deficient.loo_rmse = 0.01;
+  deficient.condition = std::numeric_limits<double>::infinity(), deficient.lambda_relative = 1e-3;
+  deficient.solved_condition = 40;
+  out.selection.orders = {fine, deficient};
+  out.selection.order = 4;
+  const std::string md = FitReportMarkdown(out, FitOptions{});
+  EXPECT_NE(md.find("| 1 | 4 | 0.05 | 3.2 | 3.2 |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| 4 | 25 | 0.01 | ill-conditioned (rank deficient; regularised by λ) | 40 |"),
+            std::string::npos)
+      << md;
+  EXPECT_EQ(md.find("| inf"), std::string::npos) << md;
+}
+
 }  // namespace
 }  // namespace rig

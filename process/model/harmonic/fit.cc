@@ -377,16 +377,18 @@ std::string SelectionTable(const Selection& selection, const std::string& unit) 
       md += fmt::format("| {} | {} | no: {} | | | | |\n", o.order, o.terms, o.refusal);
       continue;
     }
-    // Infinite: the design is rank deficient; only rls's λ makes such an order solvable.
-    const std::string condition =
-        std::isfinite(o.condition) ? fmt::format("{:.3g}", o.condition)
-        : o.lambda_relative > 0    ? "ill-conditioned (rank deficient; regularised by λ)"
-                                   : "ill-conditioned (rank deficient)";
     md += fmt::format("| {} | {} | yes | {:.5g} | {} | {} | {:.3g} |\n", o.order, o.terms,
-                      o.loo_rmse, LooRelativeCell(o.loo_rmse, selection.data_rms), condition,
-                      o.lambda_relative);
+                      o.loo_rmse, LooRelativeCell(o.loo_rmse, selection.data_rms),
+                      ConditionCell(o.condition, o.lambda_relative), o.lambda_relative);
   }
   return md;
+}
+
+std::string ConditionCell(double condition, double lambda_relative) {
+  // Infinite: the design is rank deficient; only rls's λ makes such an order solvable.
+  if (std::isfinite(condition)) return fmt::format("{:.3g}", condition);
+  return lambda_relative > 0 ? "ill-conditioned (rank deficient; regularised by λ)"
+                             : "ill-conditioned (rank deficient)";
 }
 
 }  // namespace rig

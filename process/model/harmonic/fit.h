@@ -111,6 +111,10 @@ struct Selection {
 std::string SelectionTable(const Selection& selection, const std::string& unit);
 // A LOO error as a percentage of the samples' RMS ("3.21%"); empty when the RMS is unknown.
 std::string LooRelativeCell(double loo_rmse, double data_rms);
+// A design's condition number as a table cell: "1.2e+03", or, where it is infinite (the design
+// is rank deficient, so an order can be "supported" only through λ), "ill-conditioned (rank
+// deficient; regularised by λ)" — never a bare "inf" beside "supported: yes".
+std::string ConditionCell(double condition, double lambda_relative);
 
 // Chooses order (and λ for rls) from LOO error computed from the Gram matrix. With
 // options.order >= 0 that order is built (and refused if it cannot be fitted stably); the

@@ -394,8 +394,9 @@ std::string FitReportMarkdown(const FitOutput& out, const FitOptions& o) {
       out.selection.order, o.order >= 0 ? "requested" : "chosen: smallest within tolerance",
       o.order_tolerance);
   for (const auto& r : out.selection.orders) {
-    s += fmt::format("| {} | {} | {} | {:.3g} | {} | {} | {:.4f} | {} |\n", r.order, r.terms,
-                     r.supported ? fmt::format("{:.6g}", r.loo_rmse) : "-", r.condition,
+    s += fmt::format("| {} | {} | {} | {} | {} | {} | {:.4f} | {} |\n", r.order, r.terms,
+                     r.supported ? fmt::format("{:.6g}", r.loo_rmse) : "-",
+                     ConditionCell(r.condition, r.lambda_relative),
                      r.supported ? fmt::format("{:.3g}", r.solved_condition) : "-",
                      r.supported ? fmt::format("{:.3g}", r.lambda_relative) : "-",
                      r.build_time_s,
