@@ -123,7 +123,18 @@ cv::Mat Times(const Bracket& b) {
 // Ours, OpenCV Debevec, OpenCV Robertson on one bracket (each recovers its own response from
 // this bracket, then merges it), against the true radiance.
 std::vector<HdrTrial> CompareHdr(const std::string& dataset, const Bracket& b, const cv::Mat& truth,
-                                 double noise) {
+                                 double noise, int runs) {
+  runs = std::max(1, runs);
+  // The median of `runs` timings of `step`; the first run's result is the one measured.
+  auto timed = [runs](auto&& step) {
+    std::vector<double> s;
+    for (int run = 0; run < runs; ++run) {
+      const auto t0 = Clock::now();
+      step(run);
+      s.push_back(Since(t0));
+    }
+    return MedianSeconds(s);
+  };
   std::vector<HdrTrial> out;
   auto trial = [&](const std::string& method) {
     HdrTrial t;
@@ -136,21 +147,30 @@ std::vector<HdrTrial> CompareHdr(const std::string& dataset, const Bracket& b, c
   {
     // One recovered response, merged with each weighting: "ours" is the default (a noise model
     // fitted to the bracket), then the photon and hat weightings; each timed as recovery + merge.
-    const auto t0 = Clock::now();
     const Bracket one[1] = {b};
     ResponseOptions ro;
-    auto resp = RecoverResponse(one, ro);
-    const double recovery_s = Since(t0);
+    Result<ResponseCurve> resp = MakeError(ErrorCode::kInternal, dataset, "not recovered");
+    const double recovery_s = timed([&](int run) {
+      auto r = RecoverResponse(one, ro);
+      if (run == 0) resp = std::move(r);
+    });
     for (auto [name, weighting] : {std::pair{"ours", MergeWeighting::kNoise},
                                    std::pair{"ours-photon", MergeWeighting::kPhoton},
                                    std::pair{"ours-hat", MergeWeighting::kHat}}) {
       HdrTrial t = trial(name);
-      const auto t1 = Clock::now();
       MergeOptions mo;
       mo.max_unrecorded_fraction = 1.0;
       mo.weighting = weighting;
-      Result<RadianceMap> map = resp.ok() ? MergeBracket(b, *resp, mo) : Result<RadianceMap>(resp.error());
-      t.time_s = recovery_s + Since(t1);
+      Result<RadianceMap> map = MakeError(ErrorCode::kInternal, dataset, "not merged");
+      if (!resp.ok()) map = resp.error();
+      if (resp.ok()) {
+        t.time_s = recovery_s + timed([&](int run) {
+          auto m = MergeBracket(b, *resp, mo);
+          if (run == 0) map = std::move(m);
+        });
+      } else {
+        t.time_s = recovery_s;
+      }
       if (map.ok()) {
         t.log_rms = synth::LogRmsError(map->radiance, truth, b);
       } else {
@@ -162,18 +182,18 @@ std::vector<HdrTrial> CompareHdr(const std::string& dataset, const Bracket& b, c
   }
   try {
     HdrTrial t = trial("opencv-debevec");
-    const auto t0 = Clock::now();
     cv::Mat response, hdr;
-    cv::createCalibrateDebevec()->process(Images(b), response, Times(b));
-    cv::createMergeDebevec()->process(Images(b), hdr, Times(b), response);
-    t.time_s = Since(t0);
+    t.time_s = timed([&](int) {
+      cv::createCalibrateDebevec()->process(Images(b), response, Times(b));
+      cv::createMergeDebevec()->process(Images(b), hdr, Times(b), response);
+    });
     t.log_rms = synth::LogRmsError(hdr, truth, b);
     out.push_back(t);
     t = trial("opencv-robertson");
-    const auto t1 = Clock::now();
-    cv::createCalibrateRobertson()->process(Images(b), response, Times(b));
-    cv::createMergeRobertson()->process(Images(b), hdr, Times(b), response);
-    t.time_s = Since(t1);
+    t.time_s = timed([&](int) {
+      cv::createCalibrateRobertson()->process(Images(b), response, Times(b));
+      cv::createMergeRobertson()->process(Images(b), hdr, Times(b), response);
+    });
     t.log_rms = synth::LogRmsError(hdr, truth, b);
     out.push_back(t);
   } catch (const cv::Exception& e) {
@@ -258,7 +278,7 @@ cv::Mat HdrChart(const std::vector<HdrTrial>& trials, bool by_noise, const std::
   return DrawPlot(series, {}, o);
 }
 
-cv::Mat HdrSpeedChart(const std::vector<HdrTrial>& trials) {
+cv::Mat HdrSpeedChart(const std::vector<HdrTrial>& trials, int timing_runs) {
   std::vector<PlotSeries> series;
   for (const char* m : kHdrMethods) {
     PlotSeries s{m, {}, {}, {}, false};
@@ -272,7 +292,7 @@ cv::Mat HdrSpeedChart(const std::vector<HdrTrial>& trials) {
   }
   PlotOptions o;
   o.title = "HDR methods: time against radiance error (response recovery + merge)";
-  o.x_label = "time (s)";
+  o.x_label = timing_runs > 1 ? fmt::format("time (s, median of {} runs)", timing_runs) : "time (s)";
   o.y_label = "log-radiance RMS error";
   o.log_x = o.log_y = true;
   return DrawPlot(series, {}, o);
@@ -287,6 +307,7 @@ struct SceneRow {
 // The HDR trials: on every bracket, then the stability sweeps on the first image.
 struct HdrTrials {
   std::vector<HdrTrial> main, exposures, noise;
+  int timing_runs = 1;  // each time_s the median of this many runs
 };
 
 // A dry run: every scene simulated under out/sessions/<scene> (sessions left by an
@@ -325,10 +346,11 @@ Status WriteMethodOutputs(const fs::path& out, const MethodEvaluation& methods) 
 
 // Scenes of growing complexity: the order chosen on each, and SH-rls around it.
 Result<std::vector<SceneRow>> SceneRows(const fs::path& out, const std::vector<std::string>& scenes,
-                                        const MethodEvaluation& full) {
+                                        const MethodEvaluation& full, int timing_runs) {
   std::vector<SceneRow> rows;
   for (const auto& scene : scenes) {
     RIG_ASSIGN_OR_RETURN(LoadedSession s, LoadSession(out / "sessions" / scene));
+    s.input.timing_runs = timing_runs;
     Result<MethodEvaluation> e = scene == "full" ? Result<MethodEvaluation>(full) : EvaluateMethods(s.input);
     if (!e.ok()) return e.error();
     SceneRow row{scene, -1, {}};
@@ -342,7 +364,7 @@ Result<std::vector<SceneRow>> SceneRows(const fs::path& out, const std::vector<s
 }
 
 // HDR methods on the simulated brackets of the main session, as the camera stored them.
-void SimulatedBracketTrials(const fs::path& main_session, std::vector<HdrTrial>* trials) {
+void SimulatedBracketTrials(const fs::path& main_session, int runs, std::vector<HdrTrial>* trials) {
   auto main = Session::OpenExisting(main_session);
   auto jobs = main.ok() ? CompleteBrackets(*main) : Result<std::vector<BracketJob>>(main.error());
   if (!jobs.ok()) return;
@@ -358,7 +380,7 @@ void SimulatedBracketTrials(const fs::path& main_session, std::vector<HdrTrial>*
     auto bracket = DecodeFrames(files, times);
     auto truth = ReadRgbExr((main_session / "truth" / "radiance" / (job.pose.Name() + ".exr")).string());
     if (!bracket.ok() || !truth.ok()) continue;
-    for (auto& t : CompareHdr("sim " + job.pose.Name(), *bracket, *truth, 1)) trials->push_back(t);
+    for (auto& t : CompareHdr("sim " + job.pose.Name(), *bracket, *truth, 1, runs)) trials->push_back(t);
   }
 }
 
@@ -395,16 +417,19 @@ std::vector<std::pair<std::string, cv::Mat>> HdrTruths(const EvaluationRequest& 
 // of exposures, then the noise level.
 HdrTrials RunHdrTrials(const EvaluationRequest& request, const fs::path& main_session, bool truth) {
   HdrTrials trials;
-  if (truth) SimulatedBracketTrials(main_session, &trials.main);
+  const int runs = std::max(1, request.timing_runs);
+  trials.timing_runs = runs;
+  if (truth) SimulatedBracketTrials(main_session, runs, &trials.main);
   const auto truths = HdrTruths(request);
   for (const auto& [name, truth_image] : truths) {
     const cv::Mat* t_img = &truth_image;
-    for (auto& t : CompareHdr(name, BracketFor(*t_img, 7, 1, 11), *t_img, 1)) trials.main.push_back(t);
+    for (auto& t : CompareHdr(name, BracketFor(*t_img, 7, 1, 11), *t_img, 1, runs)) trials.main.push_back(t);
     if (name != truths.front().first) continue;
+    // The sweeps chart error only (against exposures, against noise): one run each.
     for (int n : request.quick ? std::vector<int>{2, 5} : std::vector<int>{2, 3, 4, 5, 7, 9, 12})
-      for (auto& t : CompareHdr(name, BracketFor(*t_img, n, 1, 11), *t_img, 1)) trials.exposures.push_back(t);
+      for (auto& t : CompareHdr(name, BracketFor(*t_img, n, 1, 11), *t_img, 1, 1)) trials.exposures.push_back(t);
     for (double noise : request.quick ? std::vector<double>{1, 8} : std::vector<double>{0.25, 1, 2, 4, 8, 16})
-      for (auto& t : CompareHdr(name, BracketFor(*t_img, 7, noise, 11), *t_img, noise)) trials.noise.push_back(t);
+      for (auto& t : CompareHdr(name, BracketFor(*t_img, 7, noise, 11), *t_img, noise, 1)) trials.noise.push_back(t);
   }
   return trials;
 }
@@ -414,7 +439,7 @@ Status WriteHdrOutputs(const fs::path& out, const HdrTrials& hdr) {
   all_hdr.insert(all_hdr.end(), hdr.exposures.begin(), hdr.exposures.end());
   all_hdr.insert(all_hdr.end(), hdr.noise.begin(), hdr.noise.end());
   RIG_TRY(WriteText(out / "hdr_methods.csv", HdrCsv(all_hdr)));
-  if (!hdr.main.empty()) RIG_TRY(WritePng(out / "hdr_time_vs_error.png", HdrSpeedChart(hdr.main)));
+  if (!hdr.main.empty()) RIG_TRY(WritePng(out / "hdr_time_vs_error.png", HdrSpeedChart(hdr.main, hdr.timing_runs)));
   if (!hdr.exposures.empty())
     RIG_TRY(WritePng(out / "hdr_error_vs_exposures.png", HdrChart(hdr.exposures, false, "HDR stability: error against the number of exposures")));
   if (!hdr.noise.empty())
@@ -519,7 +544,11 @@ std::string EvaluationMarkdown(const fs::path& main_session, const LoadedSession
                                    seconds, findings);
   report += "## Every model\n\n![error against time](error_vs_time.png)\n\n![error against storage](error_vs_storage.png)\n\n";
   report += MethodsMarkdown(methods);
-  report += "\nRelative errors: RMS of (model ρ − reference) over RMS of the reference, all pixels and colours; LOO = leave-one-out over the sampled poses. Render time: ρ of every pixel for one lamp.\n\n![condition](condition_vs_order.png)\n\n";
+  report += fmt::format("\nRelative errors: RMS of (model ρ − reference) over RMS of the reference, all pixels and colours; LOO = leave-one-out over the sampled poses. Render time: ρ of every pixel for one lamp.{}\n\n![condition](condition_vs_order.png)\n\n",
+      methods.timing_runs > 1
+          ? fmt::format(" Times (fit, render, HDR): wall seconds, the median of {} runs of each.",
+                        methods.timing_runs)
+          : " Times (fit, render, HDR): wall seconds, one run of each (they move with the machine's load).");
   if (methods.has_truth) report += "![extrapolation](extrapolation.png)\n\n";
   if (!scene_rows.empty()) {
     report += "## No more model than the scene needs\n\nSH, regularised least squares, order chosen from leave-one-out error (smallest within the tolerance of the best):\n\n| scene | chosen order | order | terms | bytes/px | fit s | LOO rel. | truth rel. |\n|---|---|---|---|---|---|---|---|\n";
@@ -556,10 +585,11 @@ Result<EvaluationReport> RunEvaluation(const EvaluationRequest& request) {
     main_session = out / "sessions" / "full";
   }
   RIG_ASSIGN_OR_RETURN(LoadedSession loaded, LoadSession(main_session));
+  loaded.input.timing_runs = request.timing_runs;
   progress(fmt::format("evaluating every model on {}...", main_session.string()));
   RIG_ASSIGN_OR_RETURN(MethodEvaluation methods, EvaluateMethods(loaded.input));
   RIG_TRY(WriteMethodOutputs(out, methods));
-  RIG_ASSIGN_OR_RETURN(std::vector<SceneRow> scene_rows, SceneRows(out, scenes, methods));
+  RIG_ASSIGN_OR_RETURN(std::vector<SceneRow> scene_rows, SceneRows(out, scenes, methods, request.timing_runs));
   progress("evaluating HDR methods...");
   const HdrTrials hdr = RunHdrTrials(request, main_session, loaded.truth != nullptr);
   RIG_TRY(WriteHdrOutputs(out, hdr));

@@ -23,6 +23,9 @@ struct EvaluationRequest {
   // Real HDR images (.exr, .hdr) used as HDR truth; a missing folder is a warning.
   std::filesystem::path hdr_images = "../shared/data/hdr";
   bool quick = false;  // fewer scenes and HDR trials
+  // Every fit, render and HDR merge timed this many times and the median kept, so that the
+  // same machine draws the same charts whatever else it is running.
+  int timing_runs = 3;
   // The report folder (created); refused (kInvalidInput) if it holds a report.md already.
   std::filesystem::path out;
   // Called at the start of each stage with one line ("evaluating HDR methods..."); may be null.

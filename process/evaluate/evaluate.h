@@ -31,6 +31,9 @@ struct MethodEvalInput {
   int max_order = 6;                      // SH/HSH orders 0..max_order; PTM 1..4
   int bytes_per_coefficient = 2;          // half (2) or float (4) storage
   FitOptions selection;                   // the automatic choice (the session's settings)
+  // Each fit and each render timed this many times, the median kept (the same machine draws
+  // the same chart whatever else it is doing); the first fit's model is the one measured.
+  int timing_runs = 3;
 };
 
 struct MethodResult {
@@ -38,8 +41,8 @@ struct MethodResult {
   int order = 0, terms = 0;
   bool supported = false;
   std::string refusal;                    // why not, when !supported
-  double fit_time_s = 0;
-  double render_s_per_mp = 0;             // one lamp, ρ evaluated for every pixel
+  double fit_time_s = 0;                  // median of timing_runs fits (wall)
+  double render_s_per_mp = 0;             // one lamp, ρ for every pixel (median of runs)
   double bytes_per_pixel = 0;
   double condition = 0;                   // of the design matrix
   double loo_relative = 0;                // LOO RMS / RMS of ρ (0 when undefined)
@@ -60,9 +63,13 @@ struct MethodEvaluation {
   std::string selected;                   // "sh-rls order 4"
   double truth_scale = 1;                 // data ρ = scale · true ρ (HDR units are relative)
   size_t shadowed_pixels = 0, lit_pixels = 0;
+  int timing_runs = 1;                    // each time the median of this many runs
 };
 
 Result<MethodEvaluation> EvaluateMethods(const MethodEvalInput& input);
+
+// The median of timings (the mean of the middle two for an even count; NaN for none).
+double MedianSeconds(std::vector<double> seconds);
 
 // Marks the rows on the error-against-fit-time and error-against-storage Pareto fronts.
 void MarkParetoFronts(std::vector<MethodResult>* rows);

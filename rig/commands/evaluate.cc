@@ -32,6 +32,10 @@ int RunEvaluate(int argc, char** argv) {
   app.add_option("--height", request.height, "simulated image height (default 120)")->check(CLI::Range(16, 4096));
   app.add_option("--hdr-images", hdr_dir, "folder of real HDR images (.exr, .hdr) used as HDR truth");
   app.add_flag("--quick", request.quick, "fewer scenes and HDR trials (for tests)");
+  app.add_option("--timing-runs", request.timing_runs,
+                 "time every fit, render and HDR merge this many times and chart the median "
+                 "(default 3; 1 is faster, its chart moves with the machine's load)")
+      ->check(CLI::Range(1, 50));
   std::string lp;
   int lp_every = 1;
   app.add_option("--lp", lp, "a multi-light capture (.lp): every model family by leave-one-out "

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include "process/evaluate/evaluate.h"
 #include "tests/support/run_rig.h"
 
 namespace rig {
@@ -120,15 +121,34 @@ TEST(EvaluateCommand, DryRunWritesEveryMethodAndOrderTheFrontsTheChoiceAndCharts
   EXPECT_THAT(text.str(), HasSubstr("## Findings"));
   EXPECT_THAT(text.str(), HasSubstr("No more model than the scene needs"));
   EXPECT_THAT(text.str(), HasSubstr("| matte |"));
+  // Times are medians of runs (the default three), and the tables and report say so.
+  EXPECT_THAT(text.str(), HasSubstr("wall seconds, the median of 3 runs of each"));
+  EXPECT_THAT(text.str(), HasSubstr("| fit s (median of 3) |"));
 
   // The simulated session can be evaluated again as a session; a second report is refused.
-  r = RunRig("evaluate " + out + "/sessions/matte --hdr-images " + dir + "/none --out " + dir + "/again");
+  r = RunRig("evaluate " + out + "/sessions/matte --timing-runs 1 --hdr-images " + dir +
+             "/none --out " + dir + "/again");
   EXPECT_EQ(r.status, 0) << r.output;
   EXPECT_TRUE(fs::exists(dir + "/again/methods.csv"));
+  {
+    std::ifstream again(dir + "/again/report.md");
+    std::stringstream t;
+    t << again.rdbuf();
+    EXPECT_THAT(t.str(), HasSubstr("one run of each"));
+    EXPECT_THAT(t.str(), HasSubstr("| fit s (one run) |"));
+  }
+  EXPECT_EQ(RunRig("evaluate " + out + "/sessions/matte --timing-runs 0 --out " + dir + "/x").status, 2);
   r = RunRig("evaluate " + out + "/sessions/matte --out " + dir + "/again");
   EXPECT_EQ(r.status, 2);
   EXPECT_EQ(RunRig("evaluate --out " + dir + "/x").status, 2);
   fs::remove_all(dir);
+}
+
+TEST(MedianSeconds, TheMiddleRunOrTheMeanOfTheMiddleTwo) {
+  EXPECT_DOUBLE_EQ(MedianSeconds({0.3, 9.0, 0.1}), 0.3);  // one slow run (a busy moment) ignored
+  EXPECT_DOUBLE_EQ(MedianSeconds({0.4, 0.2, 5.0, 0.3}), 0.35);
+  EXPECT_DOUBLE_EQ(MedianSeconds({2.0}), 2.0);
+  EXPECT_TRUE(std::isnan(MedianSeconds({})));
 }
 
 }  // namespace
