@@ -336,6 +336,11 @@ void VisitGridSection(Config& c, V& v) {
   v.Field("v_max_deg", g.v_max_deg, Range{-90, 90});
   v.Field("v_step_deg", g.v_step_deg, Range{0.01, 180});
   v.Field("order", g.order, {"serpentine", "raster"});
+  v.Field("mode", g.mode, {"full", "adaptive"});
+  v.Field("max_poses", g.max_poses, Range{0, 100000});
+  v.Field("seed_poses", g.seed_poses, Range{1, 1000});
+  v.Field("target", g.target, Range{0, 1});
+  v.Field("pose_cost_s", g.pose_cost_s, Range{-1, 3600});
 }
 
 template <typename V>

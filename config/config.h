@@ -21,6 +21,20 @@ struct GridConfig {
   double h_min_deg = 0, h_max_deg = 90, h_step_deg = 10;
   double v_min_deg = 0, v_max_deg = 30, v_step_deg = 10;
   std::string order = "serpentine";  // "serpentine" (short moves) | "raster"
+  // "full": every pose of the grid. "adaptive": the grid is the set of poses allowed; the
+  // session takes a spread seed, then after each pose the next one its images so far say is
+  // worth most per second of the rig's time (process/model/light_choice.h), each choice
+  // journaled with its reason before the arm moves (docs/lights.md "Adaptive grid").
+  std::string mode = "full";
+  int max_poses = 0;          // adaptive: at most this many poses (0: half the grid's, rounded up)
+  int seed_poses = 8;         // adaptive: the spread seed (at least 6)
+  // Adaptive: stop before max_poses when the predicted error over the grid's span (sampled
+  // at a quarter of its steps) is within this fraction (+ half a code) of what every pose of
+  // the grid would leave, by the choice's per-pixel model (0: only max_poses stops).
+  double target = 0.1;
+  // Adaptive: a pose's cost beside its motion, seconds (settle, lamp, bracket, transfer);
+  // < 0: estimated from the configuration (docs/lights.md).
+  double pose_cost_s = -1;
 };
 
 // The exposure bracket at every pose: an explicit list, or a centre with EV spacing.

@@ -13,6 +13,7 @@
 
 #include <fmt/ranges.h>
 
+#include "capture/daemon/adaptive_grid.h"
 #include "capture/daemon/metering.h"
 #include "capture/plan/adaptive_bracket.h"
 #include "capture/plan/bracket.h"
@@ -122,6 +123,16 @@ struct CaptureDaemon::RunState {
   // Adaptive: each pose's journaled plan (bracket index -> exposure, seconds). A pose with a
   // plan keeps it for good; a pose without one is metered first.
   std::map<std::string, std::vector<double>> pose_plans;
+  // grid.mode = "adaptive": the grid is the poses allowed; `chosen` the poses the journal's
+  // "pose_chosen" records took, in order (a resume takes them again first), `grid_done` an
+  // earlier run journaled the choice's end; `working` the processed file and bytes of the
+  // frame the choice reads (the bracket's centre exposure) of the pose just visited.
+  bool adaptive_grid = false;
+  std::vector<std::string> chosen;
+  bool grid_done = false;
+  std::string working_pose;
+  std::map<int, std::pair<std::string, std::vector<uint8_t>>> working;  // index -> file, bytes
+  int working_factor = 0;  // the working images' shrink factor, from the first frame read
   int already = 0;                            // frames stored and verified before this run
   std::optional<BracketProcessor> processor;
   std::optional<Progress> progress;
@@ -171,6 +182,7 @@ Status CaptureDaemon::Run(CaptureSummary* summary) {
   RunState run{*summary};
   Status st = [&]() -> Status {
     run.poses = PlanGrid(session_.config().grid);
+    run.adaptive_grid = session_.config().grid.mode == "adaptive";
     RIG_TRY(VerifyStored(run));
     RIG_TRY(session_.journal().Append(
         {{"event", run.plan_record ? "resume" : "start"}, {"pid", ::getpid()}}));
@@ -179,7 +191,11 @@ Status CaptureDaemon::Run(CaptureSummary* summary) {
     StartProcessing(run);
     RIG_TRY(Home(run));
     run.progress.emplace(options_.progress ? run.sum.frames : 0, run.already);
-    for (const Pose& pose : run.poses) RIG_TRY(VisitPose(run, pose));
+    if (run.adaptive_grid) {
+      RIG_TRY(VisitAdaptiveGrid(run));
+    } else {
+      for (const Pose& pose : run.poses) RIG_TRY(VisitPose(run, pose));
+    }
     return Finish(run);
   }();
   if (!st.ok()) {
@@ -215,6 +231,8 @@ void CaptureDaemon::ReadJournal(RunState& run) {
     std::string ev = r.value("event", "");
     if (ev == "plan") run.plan_record = r;
     if (ev == "capture_done") run.was_done = true;
+    if (ev == "pose_chosen") run.chosen.push_back(r.at("pose").get<std::string>());
+    if (ev == "grid_done") run.grid_done = true;
     // The first plan journaled for a pose stands (a pose is never planned twice).
     if (ev == "pose_plan")
       run.pose_plans.emplace(r.at("pose").get<std::string>(),
@@ -339,6 +357,9 @@ Status CaptureDaemon::Plan(RunState& run) {
     RIG_TRY(session_.journal().Append({{"event", "plan"}, {"poses", pose_names},
                                        {"exposures_s", run.exposures},
                                        {"bracket_mode", mode},
+                                       {"grid_mode", session_.config().grid.mode},
+                                       {"max_poses", AdaptiveMaxPoses(session_.config().grid,
+                                                                      static_cast<int>(run.poses.size()))},
                                        {"camera", camera_.Describe()},
                                        {"motor", motor_.Describe()}, {"lamp", lamp_.Describe()}}));
   }
@@ -346,13 +367,22 @@ Status CaptureDaemon::Plan(RunState& run) {
   RIG_TRY(CheckStoredAgainstPlans(run));
   run.sum.poses = static_cast<int>(run.poses.size());
   // Adaptive: a pose not yet metered counts as the fixed bracket's length until its plan is
-  // journaled.
+  // journaled. An adaptive grid plans its max_poses: the poses chosen so far, and the rest at
+  // the fixed bracket's length.
   run.sum.frames = 0;
-  for (const auto& p : run.poses) {
-    const std::vector<double>* e = run.ExposuresOf(p.Name());
+  std::vector<std::string> counted;
+  if (run.adaptive_grid) {
+    run.sum.poses = AdaptiveMaxPoses(session_.config().grid, static_cast<int>(run.poses.size()));
+    counted = run.chosen;
+    run.sum.frames += run.n_exp * std::max(0, run.sum.poses - static_cast<int>(counted.size()));
+  } else {
+    for (const auto& p : run.poses) counted.push_back(p.Name());
+  }
+  for (const auto& name : counted) {
+    const std::vector<double>* e = run.ExposuresOf(name);
     const int n = e ? static_cast<int>(e->size()) : run.n_exp;
     run.sum.frames += n;
-    for (int i = 0; i < (e ? n : 1); ++i) run.already += run.IndexDone(p.Name(), i) ? 1 : 0;
+    for (int i = 0; i < (e ? n : 1); ++i) run.already += run.IndexDone(name, i) ? 1 : 0;
   }
   run.sum.frames_verified = run.already;
   Log("session")->info(
@@ -408,6 +438,12 @@ Status CaptureDaemon::CheckPlan(RunState& run, const std::vector<std::string>& p
     return MakeError(ErrorCode::kInvalidInput, camera_.Describe(),
                      "the camera now offers a different bracket than the session started with");
   run.exposures = before;  // the session's bracket stands
+  const std::string grid_mode =
+      plan["grid_mode"].is_string() ? plan["grid_mode"].get<std::string>() : "full";
+  if (grid_mode != session_.config().grid.mode)
+    return MakeError(ErrorCode::kInvalidInput, session_.layout().journal().string(),
+                     "the journal's plan has grid mode '{}', session.toml '{}'", grid_mode,
+                     session_.config().grid.mode);
   const std::string mode = plan["bracket_mode"].is_string() ? plan["bracket_mode"].get<std::string>()
                                                              : std::string("fixed");
   if (mode != session_.config().bracket.mode)
@@ -425,7 +461,7 @@ void CaptureDaemon::StartProcessing(RunState& run) {
     const Config& config = session_.config();
     store_ = std::make_shared<MapStore>(
         config.process.hdr_pixel_type == "half" ? ExrPixelType::kHalf : ExrPixelType::kFloat,
-        run.poses.size(), MapStore::DefaultMaxBytes());
+        static_cast<size_t>(run.sum.poses), MapStore::DefaultMaxBytes());
     PlanSessionGram(*store_, config);
     run.processor.emplace(layout, config, store_.get());
   }
@@ -459,6 +495,11 @@ Status CaptureDaemon::Home(RunState& run) {
   const MotorConfig& mc = session_.config().motor;
   bool all_done = true;
   for (const auto& p : run.poses) all_done = all_done && run.PoseDone(p.Name());
+  // An adaptive grid: done when its choice ended and every pose it chose is stored.
+  if (run.adaptive_grid) {
+    all_done = run.grid_done;
+    for (const auto& name : run.chosen) all_done = all_done && run.PoseDone(name);
+  }
   if (all_done) return Ok();
   if (!mc.home_on_start) {
     if (run.plan_record)
@@ -501,8 +542,119 @@ Status CaptureDaemon::VisitPose(RunState& run, const Pose& pose) {
   RIG_TRY(LampOff(run));
   RIG_TRY(session_.journal().Append({{"event", "pose_done"}, {"pose", name}}));
   if (options_.progress) run.progress->PoseDone(name);
+  if (run.adaptive_grid) {
+    // The frames the choice reads, before the bytes go to the processor.
+    run.working_pose = name;
+    run.working.clear();
+    for (const auto& [index, f] : fresh) run.working[index] = {f.first.string(), f.second};
+  }
   HandOff(run, pose, fresh);
   return Ok();
+}
+
+// ---- The adaptive grid ----------------------------------------------------------------------
+
+// The bracket indices the choice reads: every frame of a fixed bracket (the same exposures at
+// every pose), an adaptive bracket's metering frame (index 0: the centre exposure at every
+// pose; the others differ from pose to pose).
+std::vector<int> CaptureDaemon::WorkingIndices(const RunState& run) const {
+  if (run.adaptive) return {0};
+  std::vector<int> all;
+  for (int i = 0; i < run.n_exp; ++i) all.push_back(i);
+  return all;
+}
+
+// The working image of a visited pose (MeanOfFrames of WorkingIndices): the bytes just
+// captured, or the stored files read back (a pose stored before a resume: the same bytes, so
+// the same choice).
+Result<cv::Mat> CaptureDaemon::WorkingFrame(RunState& run, const Pose& pose) {
+  const std::string name = pose.Name();
+  const int max_pixels = LightChoiceOptions{}.max_working_pixels;
+  std::vector<cv::Mat> frames;
+  for (int index : WorkingIndices(run)) {
+    std::vector<uint8_t> bytes;
+    std::string file;
+    if (auto w = run.working.find(index); run.working_pose == name && w != run.working.end()) {
+      file = w->second.first;
+      bytes = w->second.second;
+    } else {
+      for (const auto& s : run.stored[name][index]) {
+        if (!IsProcessed(session_.config().camera, ExtensionOf(s.record))) continue;
+        const std::string rel = s.record.at("file").get<std::string>();
+        auto read = ReadSessionFile(session_.layout().root, rel);
+        if (!read.ok()) return read.error().Within("pose " + name);
+        bytes = std::move(read).value();
+        file = (session_.layout().root / rel).string();
+      }
+    }
+    if (file.empty())
+      return MakeError(ErrorCode::kInternal, "pose " + name,
+                       "frame {} of the bracket is not stored", index);
+    auto image = DecodeForChoice(bytes, file, max_pixels);
+    if (!image.ok()) return image.error().Within("pose " + name);
+    if (run.working_factor == 0) run.working_factor = WorkingFactorFor(*image, max_pixels);
+    auto w = WorkingImage(*image, run.working_factor, file);
+    if (!w.ok()) return w.error().Within("pose " + name);
+    frames.push_back(std::move(w).value());
+  }
+  return MeanOfFrames(frames, "pose " + name);
+}
+
+// Takes the poses the journal chose (a resume), then each pose the choice proposes, journaling
+// it with its reason before the arm moves, until the choice stops (max_poses, the target, every
+// pose taken); its end is journaled once ("grid_done").
+Status CaptureDaemon::VisitAdaptiveGrid(RunState& run) {
+  const Config& config = session_.config();
+  std::map<std::string, int> index_of;
+  for (size_t i = 0; i < run.poses.size(); ++i) index_of[run.poses[i].Name()] = static_cast<int>(i);
+  double pose_cost = AdaptivePoseCost(config, run.exposures);
+  LightChooser chooser(AdaptiveGridDirections(config, run.poses),
+                       AdaptiveGridOptions(config, run.poses, pose_cost));
+  auto log = Log("session");
+  for (size_t k = 0;; ++k) {
+    LightChoiceStep step;
+    if (k < run.chosen.size()) {
+      auto it = index_of.find(run.chosen[k]);
+      if (it == index_of.end())
+        return MakeError(ErrorCode::kInvalidInput, session_.layout().journal().string(),
+                         "choice {}: pose {} is not on the grid", k + 1, run.chosen[k]);
+      step.light = it->second;
+      step.reason = "journaled";
+    } else if (run.grid_done) {
+      return Ok();  // the journal says the choice ended here: no more, whatever a replay says
+    } else {
+      RIG_ASSIGN_OR_RETURN(LightChooser::Proposal next, chooser.Propose());
+      if (next.stop) {
+        if (k >= static_cast<size_t>(AdaptiveMaxPoses(config.grid, static_cast<int>(run.poses.size()))) &&
+            k < run.poses.size())
+          next.stop_reason = fmt::format("max_poses: {} of the grid's {} poses taken", k, run.poses.size());
+        log->info("adaptive grid: done after {} poses: {}", k, next.stop_reason);
+        if (!run.grid_done)
+          RIG_TRY(session_.journal().Append(
+              {{"event", "grid_done"}, {"poses", k}, {"reason", next.stop_reason}}));
+        run.grid_done = true;
+        return Ok();
+      }
+      step = next.step;
+      const Pose& p = run.poses[static_cast<size_t>(step.light)];
+      nlohmann::json rec = {{"event", "pose_chosen"}, {"pose", p.Name()},
+                            {"choice", k + 1},        {"seed", step.seed},
+                            {"gap_deg", step.gap_deg}, {"reason", step.reason}};
+      if (!step.seed) {
+        rec["predicted_rms"] = step.predicted_rms;
+        rec["remaining_rms"] = step.remaining_rms;
+        rec["region_rms"] = step.region_rms;
+        rec["floor_rms"] = step.floor_rms;
+      }
+      RIG_TRY(session_.journal().Append(rec));
+      run.chosen.push_back(p.Name());
+      log->info("pose_chosen pose={} choice={} {}", p.Name(), k + 1, step.reason);
+    }
+    const Pose& pose = run.poses[static_cast<size_t>(step.light)];
+    RIG_TRY(VisitPose(run, pose));
+    RIG_ASSIGN_OR_RETURN(cv::Mat img, WorkingFrame(run, pose));
+    RIG_TRY(chooser.Take(step.light, img, step));
+  }
 }
 
 // Adaptive: takes (or reads back) the pose's metering frame, bracket index 0 at the fixed

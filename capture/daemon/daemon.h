@@ -11,6 +11,8 @@
 #include <utility>
 #include <vector>
 
+#include <opencv2/core.hpp>
+
 #include "capture/devices/camera.h"
 #include "capture/devices/lamp.h"
 #include "capture/devices/motor.h"
@@ -76,6 +78,7 @@ class CaptureDaemon {
   Status Home(RunState& run);
   Status VisitPose(RunState& run, const Pose& pose);
   Status Finish(RunState& run);
+  Status VisitAdaptiveGrid(RunState& run);
 
   // Parts of the steps.
   void ReadJournal(RunState& run);
@@ -95,6 +98,8 @@ class CaptureDaemon {
                     CapturedFrame& frame, FreshImages& fresh);
   void HandOff(RunState& run, const Pose& pose, FreshImages& fresh);
   void Submit(RunState& run, BracketJob job);
+  std::vector<int> WorkingIndices(const RunState& run) const;
+  Result<cv::Mat> WorkingFrame(RunState& run, const Pose& pose);
 
   // Leaving safely, and retrying.
   void Park(RunState& run);

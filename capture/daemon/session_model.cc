@@ -27,10 +27,15 @@ Result<StreamFitInput> SessionMapInput(const Session& session, std::vector<std::
   const SessionLayout& layout = session.layout();
   StreamFitInput in;
   std::vector<double> h, v;
+  // An adaptive grid takes only the poses its choice chose: the others are not missing.
+  const bool adaptive = config.grid.mode == "adaptive";
+  int allowed = 0;
   for (const Pose& p : PlanGrid(config.grid)) {
+    ++allowed;
     fs::path path = layout.Hdr(p.Name());
     if (!fs::exists(path)) {
-      Log("process")->warn("pose={} has no radiance map; the model is fitted without it", p.Name());
+      if (!adaptive)
+        Log("process")->warn("pose={} has no radiance map; the model is fitted without it", p.Name());
       continue;
     }
     keys->push_back(p.Name());
@@ -42,6 +47,9 @@ Result<StreamFitInput> SessionMapInput(const Session& session, std::vector<std::
   if (in.paths.size() < 2)
     return MakeError(ErrorCode::kInvalidInput, layout.hdr().string(),
                      "{} radiance map(s): too few to fit a model", in.paths.size());
+  if (adaptive)
+    Log("process")->info("adaptive grid: the model is fitted from the {} poses taken of {} allowed",
+                         in.paths.size(), allowed);
   in.weights = GridQuadratureWeights(h, v);
   in.light_frame = config.light_frame;
   in.lamp_radiance_rgb = config.lamp.radiance_rgb;

@@ -1,6 +1,7 @@
 // Pose names and grid planning.
 #include "capture/plan/pose.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 
@@ -76,6 +77,17 @@ std::string SoftLimitViolation(const MotorConfig& m, const Pose& pose) {
   return fmt::format("h {} v {} deg is outside the soft limits h {}..{} v {}..{}", pose.h_deg,
                      pose.v_deg, m.h_limit_min_deg, m.h_limit_max_deg, m.v_limit_min_deg,
                      m.v_limit_max_deg);
+}
+
+double MoveSeconds(const MotorConfig& m, const Pose& from, const Pose& to) {
+  auto axis = [&](double d) {
+    d = std::fabs(d);
+    const double v = std::max(m.speed_deg_per_s, 1e-9), a = std::max(m.accel_deg_per_s2, 1e-9);
+    // Too short to reach the speed: a triangle, accelerating half the way.
+    if (d < v * v / a) return 2 * std::sqrt(d / a);
+    return d / v + v / a;
+  };
+  return std::max(axis(to.h_deg - from.h_deg), axis(to.v_deg - from.v_deg));
 }
 
 }  // namespace rig

@@ -29,4 +29,9 @@ std::vector<Pose> PlanGrid(const GridConfig& grid);
 // h -5..95 v -5..60"), or empty when it is inside. Every motor backend refuses such a move.
 std::string SoftLimitViolation(const MotorConfig& motor, const Pose& pose);
 
+// The seconds a move from `from` to `to` takes by the motor's configuration: each axis a
+// trapezoid (accelerate at accel_deg_per_s2 to speed_deg_per_s, cruise, decelerate), both
+// axes at once, the longer one counting. An estimate for planning: no settle, no protocol.
+double MoveSeconds(const MotorConfig& motor, const Pose& from, const Pose& to);
+
 }  // namespace rig

@@ -5,6 +5,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <map>
+#include <set>
 #include <string>
 #include <string_view>
 
@@ -53,6 +55,8 @@ void JournalTail::Update() {
 
 JournalProgress JournalTail::Progress() const {
   JournalProgress p;
+  std::map<std::string, int> pose_frames;  // pose -> its own bracket's length (adaptive)
+  std::set<std::string> pose_done;         // "pose_done" records
   for (size_t i = 0; i < records_.size(); ++i) {
     const auto& r = records_[i];
     const std::string ev = r.value("event", "");
@@ -67,11 +71,27 @@ JournalProgress JournalTail::Progress() const {
       p.exposures = r.contains("exposures_s") && r["exposures_s"].is_array()
                         ? static_cast<int>(r["exposures_s"].size())
                         : 0;
+      p.adaptive_grid = r.value("grid_mode", "full") == "adaptive";
+      p.max_poses = r.contains("max_poses") && r["max_poses"].is_number_integer()
+                        ? r["max_poses"].get<int>()
+                        : 0;
+    } else if (ev == "pose_plan" && r.contains("pose") && r["pose"].is_string() &&
+               r.contains("exposures_s") && r["exposures_s"].is_array()) {
+      // An adaptive bracket: the pose's own frames (its first plan stands).
+      pose_frames.emplace(r["pose"].get<std::string>(), static_cast<int>(r["exposures_s"].size()));
+    } else if (ev == "pose_done" && r.contains("pose") && r["pose"].is_string()) {
+      pose_done.insert(r["pose"].get<std::string>());
+    } else if (ev == "pose_chosen" && r.contains("pose") && r["pose"].is_string()) {
+      p.chosen.push_back(r["pose"].get<std::string>());
+      p.last_choice = r;
+    } else if (ev == "grid_done") {
+      p.grid_done = r;
     } else if ((ev == "frame" || ev == "frame_damaged") && r.contains("pose") &&
                r["pose"].is_string() && r.contains("index") && r["index"].is_number_integer()) {
       auto key = std::make_pair(r["pose"].get<std::string>(), r["index"].get<int>());
       if (ev == "frame_damaged") {
         p.stored.erase(key);
+        pose_done.erase(key.first);  // to be taken again
         continue;
       }
       p.stored.insert(key);
@@ -89,14 +109,20 @@ JournalProgress JournalTail::Progress() const {
       p.capture_done = true;
     }
   }
-  for (size_t i = 0; i < p.poses.size(); ++i) {
-    bool whole = p.exposures > 0;
-    for (int k = 0; k < p.exposures && whole; ++k) whole = p.stored.count({p.poses[i], k}) > 0;
+  // The poses in the order they are visited: the plan's, or an adaptive grid's chosen ones
+  // (a pose is chosen before the arm moves to it).
+  const std::vector<std::string>& order = p.adaptive_grid ? p.chosen : p.poses;
+  for (size_t i = 0; i < order.size(); ++i) {
+    auto own = pose_frames.find(order[i]);
+    const int frames = own != pose_frames.end() ? own->second : p.exposures;
+    bool whole = pose_done.count(order[i]) > 0 || frames > 0;
+    for (int k = 0; k < frames && whole && !pose_done.count(order[i]); ++k)
+      whole = p.stored.count({order[i], k}) > 0;
     if (whole) {
-      p.poses_done.insert(p.poses[i]);
+      p.poses_done.insert(order[i]);
     } else if (p.next_pose_index < 0) {
       p.next_pose_index = static_cast<int>(i);
-      p.next_pose = p.poses[i];
+      p.next_pose = order[i];
     }
   }
   return p;

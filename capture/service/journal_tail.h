@@ -32,6 +32,13 @@ struct JournalProgress {
   bool capture_done = false;           // "capture_done" since the last start/resume
   size_t runs = 0;                      // "start" and "resume" records
   size_t last_run_record = 0;           // index of the last of them
+  // An adaptive grid (the plan's grid_mode "adaptive"): `poses` are the poses allowed; the
+  // poses taken are `chosen`, in the order chosen ("pose_chosen"), at most `max_poses`.
+  bool adaptive_grid = false;
+  int max_poses = 0;
+  std::vector<std::string> chosen;
+  std::optional<nlohmann::json> last_choice;  // the last "pose_chosen" record
+  std::optional<nlohmann::json> grid_done;    // the "grid_done" record: why the choice stopped
 };
 
 class JournalTail {

@@ -528,6 +528,30 @@ fs::path SessionModelFile(const fs::path& root) {
 
 }  // namespace
 
+// An adaptive grid's choice as the status reports it: how many poses chosen of how many, the
+// predicted RMS error (8-bit codes) over the grid's span when the last pose was chosen and what
+// every allowed pose would leave, by the choice's per-pixel model, and why it stopped.
+static nlohmann::json AdaptiveChoiceJson(const JournalProgress& p) {
+  nlohmann::json c = {{"mode", "adaptive"},
+                      {"max_poses", p.max_poses},
+                      {"chosen", p.chosen.size()},
+                      {"allowed", p.poses.size()},
+                      {"predicted_rms", nullptr},
+                      {"floor_rms", nullptr},
+                      {"reason", nullptr},
+                      {"stopped", nullptr}};
+  // The predicted RMS error (8-bit codes) over the grid's span when the last pose was
+  // chosen, and what every allowed pose would leave, by the choice's per-pixel model.
+  if (p.last_choice) {
+    for (const char* k : {"region_rms", "floor_rms"})
+      if (p.last_choice->contains(k) && (*p.last_choice)[k].is_number() && (*p.last_choice)[k].get<double>() >= 0)
+        c[std::string(k) == "region_rms" ? "predicted_rms" : k] = (*p.last_choice)[k];
+    c["reason"] = p.last_choice->value("reason", "");
+  }
+  if (p.grid_done) c["stopped"] = p.grid_done->value("reason", "");
+  return c;
+}
+
 nlohmann::json CaptureService::StatusJson() {
   std::lock_guard lock(mu_);
   nlohmann::json s;
@@ -572,7 +596,12 @@ nlohmann::json CaptureService::StatusJson() {
 
   const Watched& w = *watched_;
   s["session"] = w.root.string();
-  const int total_poses = static_cast<int>(p.poses.empty() ? w.grid.size() : p.poses.size());
+  int total_poses = static_cast<int>(p.poses.empty() ? w.grid.size() : p.poses.size());
+  // An adaptive grid takes at most max_poses of the poses allowed, and as many as it chose
+  // once the choice stopped.
+  if (p.adaptive_grid)
+    total_poses = p.grid_done ? static_cast<int>(p.chosen.size())
+                              : (p.max_poses > 0 ? std::min(p.max_poses, total_poses) : total_poses);
   const int total_frames = total_poses * std::max(p.exposures, w.config.bracket.count);
   const int stored = static_cast<int>(p.stored.size());
   int this_run = 0;
@@ -580,11 +609,12 @@ nlohmann::json CaptureService::StatusJson() {
     this_run += w.tail.records()[i].value("event", "") == "frame" ? 1 : 0;
   s["frames"] = {{"stored", stored}, {"total", total_frames}, {"this_job", this_run}};
   s["poses_done"] = p.poses_done.size();
-  if (p.poses.empty() && !w.grid.empty()) {
+  if (p.poses.empty() && !w.grid.empty() && w.config.grid.mode != "adaptive") {
     // No plan journaled yet: the capture begins at the grid's first pose.
     p.next_pose = w.grid.front().Name();
     p.next_pose_index = 0;
   }
+  if (p.adaptive_grid) s["choice"] = AdaptiveChoiceJson(p);
   if (!p.next_pose.empty()) {
     nlohmann::json pose = {{"index", p.next_pose_index}, {"number", p.next_pose_index + 1},
                            {"name", p.next_pose}, {"total", total_poses}};
@@ -617,8 +647,17 @@ nlohmann::json CaptureService::StatusJson() {
   nlohmann::json grid = nlohmann::json::array();
   for (const Pose& g : w.grid) {
     const std::string n = g.Name();
-    grid.push_back({{"name", n}, {"h_deg", g.h_deg}, {"v_deg", g.v_deg},
-                    {"state", p.poses_done.count(n) ? "done" : (n == p.next_pose ? "next" : "todo")}});
+    nlohmann::json e = {{"name", n}, {"h_deg", g.h_deg}, {"v_deg", g.v_deg},
+                        {"state", p.poses_done.count(n) ? "done" : (n == p.next_pose ? "next" : "todo")}};
+    if (p.adaptive_grid) {
+      // "todo" on an adaptive grid: allowed, not chosen (yet, or ever once it stopped).
+      const auto it = std::find(p.chosen.begin(), p.chosen.end(), n);
+      if (it != p.chosen.end())
+        e["choice"] = it - p.chosen.begin() + 1;
+      else
+        e["state"] = p.grid_done ? "skipped" : "allowed";
+    }
+    grid.push_back(e);
   }
   s["grid"] = grid;
   s["last_frame"] = p.last_frame_file.empty() ? nlohmann::json(nullptr)

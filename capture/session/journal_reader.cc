@@ -155,6 +155,15 @@ std::string RecordProblem(const json& r) {
   } else if (e == "pose_plan") {
     c.Pose("pose");
     c.ExposureList("exposures_s");
+  } else if (e == "pose_chosen") {
+    c.Pose("pose");
+    c.Integer("choice", 1, 1000000);
+    c.String("reason", false);
+    for (const char* k : {"gap_deg", "predicted_rms", "remaining_rms", "region_rms", "floor_rms"})
+      c.Number(k, -1, 1e6, false);
+  } else if (e == "grid_done") {
+    c.Integer("poses", 0, 1000000);
+    c.String("reason", false);
   } else if (e == "frame_damaged") {
     c.Pose("pose");
     c.Integer("index", 0, kMaxBracketIndex - 1);

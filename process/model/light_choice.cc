@@ -105,12 +105,12 @@ struct Prediction {
 };
 
 Prediction Predict(const std::vector<Vec3>& dirs, const std::vector<int>& chosen,
-                   const ChosenModel& m, int candidate) {
+                   const ChosenModel& m, const Vec3& at) {
   Prediction p;
-  p.gap = NearestAngle(dirs, chosen, dirs[candidate], -1, &p.nearest);
+  p.gap = NearestAngle(dirs, chosen, at, -1, &p.nearest);
   double wsum = 0, gsum = 0, wmax = -1;
   for (size_t i = 0; i < chosen.size(); ++i) {
-    const double t = Angle(dirs[candidate], dirs[chosen[i]]);
+    const double t = Angle(at, dirs[chosen[i]]);
     // Relative to the nearest, so that a candidate far from all keeps finite weights.
     const double w = std::exp(-(t * t - p.gap * p.gap) / (2 * m.sigma * m.sigma));
     wsum += w;
@@ -130,6 +130,8 @@ struct Pick {
   double score = -1, runner_up_score = -1;
   Prediction prediction;     // at `light`
   double remaining_mse = 0;  // mean predicted MSE over the lights not chosen
+  double region_mse = 0;     // mean predicted MSE over the region
+  double floor_mse = 0;      // the same with every candidate taken
 };
 
 // The candidate of largest score. kLargestError: its own predicted MSE. kErrorReduction: the
@@ -138,25 +140,44 @@ struct Pick {
 // so a light between unsampled neighbours is worth more than an isolated peak, and a region
 // already dense gains little from one more. Ties keep the lower index.
 Pick NextLight(const std::vector<Vec3>& dirs, const std::vector<int>& chosen,
-               const ChosenModel& model, LightCriterion criterion) {
-  std::vector<int> open;
+               const ChosenModel& model, LightCriterion criterion,
+               const std::function<double(int, int)>& cost_s, const std::vector<Vec3>& region) {
+  std::vector<int> open, all;
   std::vector<Prediction> pred;
   for (int c = 0; c < static_cast<int>(dirs.size()); ++c) {
+    all.push_back(c);
     if (std::find(chosen.begin(), chosen.end(), c) != chosen.end()) continue;
     open.push_back(c);
-    pred.push_back(Predict(dirs, chosen, model, c));
+    pred.push_back(Predict(dirs, chosen, model, dirs[c]));
   }
   Pick pick;
   for (const auto& p : pred) pick.remaining_mse += p.mse / static_cast<double>(pred.size());
+  // Where the error counts: the region's directions, else the lights not chosen.
+  std::vector<Vec3> at;
+  std::vector<Prediction> at_pred;
+  if (region.empty()) {
+    for (int c : open) at.push_back(dirs[c]);
+    at_pred = pred;
+  } else {
+    at = region;
+    for (const Vec3& x : region) at_pred.push_back(Predict(dirs, chosen, model, x));
+  }
+  for (size_t j = 0; j < at.size(); ++j) {
+    const double full_gap = NearestAngle(dirs, all, at[j], -1);
+    pick.region_mse += at_pred[j].mse / static_cast<double>(at.size());
+    pick.floor_mse += at_pred[j].roughness * full_gap * full_gap / static_cast<double>(at.size());
+  }
   for (size_t i = 0; i < open.size(); ++i) {
     double score = pred[i].mse;
     if (criterion == LightCriterion::kErrorReduction) {
       score = 0;
-      for (size_t j = 0; j < open.size(); ++j) {
-        const double gap = std::min(pred[j].gap, Angle(dirs[open[i]], dirs[open[j]]));
-        score += pred[j].roughness * (pred[j].gap * pred[j].gap - gap * gap);
+      for (size_t j = 0; j < at.size(); ++j) {
+        const double gap = std::min(at_pred[j].gap, Angle(dirs[open[i]], at[j]));
+        score += at_pred[j].roughness * (at_pred[j].gap * at_pred[j].gap - gap * gap);
       }
     }
+    // Per second of the rig's time, when taking a light has a cost.
+    if (cost_s) score /= std::max(1e-3, cost_s(chosen.back(), open[i]));
     if (score > pick.score) {
       pick.runner_up = pick.light;
       pick.runner_up_score = pick.score;
@@ -208,6 +229,114 @@ std::vector<int> FarthestPointLights(const std::vector<Vec3>& directions, int co
   return chosen;
 }
 
+LightChooser::LightChooser(std::vector<Vec3> directions, LightChoiceOptions options)
+    : dirs_(std::move(directions)), options_(std::move(options)) {
+  options_.count = std::clamp(options_.count, 1, std::max(1, static_cast<int>(dirs_.size())));
+  seed_ = FarthestPointLights(dirs_, LightChoiceSeedCount(options_));
+}
+
+Result<LightChooser::Proposal> LightChooser::Propose() const {
+  Proposal out;
+  const int n = static_cast<int>(dirs_.size());
+  if (taken() >= n) {
+    out.stop = true;
+    out.stop_reason = fmt::format("every one of the {} lights is taken", n);
+    return out;
+  }
+  if (taken() >= options_.count) {
+    out.stop = true;
+    out.stop_reason = fmt::format("the count: {} lights taken, as many as allowed", taken());
+    return out;
+  }
+  LightChoiceStep& step = out.step;
+  // The seed, while a seed light is left untaken and the seed's size is not reached.
+  if (taken() < static_cast<int>(seed_.size())) {
+    for (int light : seed_) {
+      if (std::find(chosen_.begin(), chosen_.end(), light) != chosen_.end()) continue;
+      step.light = light;
+      step.seed = true;
+      step.gap_deg = chosen_.empty() ? 0 : kDeg * NearestAngle(dirs_, chosen_, dirs_[light], -1);
+      step.reason = chosen_.empty()
+                        ? "seed: the highest light"
+                        : fmt::format("seed: the light farthest from those taken ({:.1f} deg)",
+                                      step.gap_deg);
+      return out;
+    }
+  }
+  const ChosenModel model = FitChosen(dirs_, chosen_, values_, options_.ridge);
+  const Pick pick = NextLight(dirs_, chosen_, model, options_.criterion, options_.cost_s,
+                              options_.region);
+  const Prediction& best = pick.prediction;
+  step.remaining_rms = std::sqrt(pick.remaining_mse);
+  step.region_rms = std::sqrt(pick.region_mse);
+  step.floor_rms = std::sqrt(pick.floor_mse);
+  // The stop at the target: the region's predicted error within the target of what every
+  // candidate taken would leave.
+  const double enough = (1 + options_.target) * step.floor_rms + kChoiceNoiseCodes;
+  if (options_.target > 0 && step.region_rms <= enough) {
+    out.stop = true;
+    out.stop_reason = fmt::format(
+        "the target: the predicted RMS error over the {} is {:.2f} codes, within {:.0f}% (+{} "
+        "code) of the {:.2f} that taking all {} would leave",
+        options_.region.empty() ? "lights not taken" : "region", step.region_rms,
+        100 * options_.target, kChoiceNoiseCodes, step.floor_rms, n);
+    return out;
+  }
+  const auto driver = std::find(chosen_.begin(), chosen_.end(), best.driver) - chosen_.begin();
+  step.light = pick.light;
+  step.gap_deg = kDeg * best.gap;
+  step.predicted_rms = std::sqrt(best.mse);
+  const std::string per = options_.cost_s ? " per second of the rig's time" : "";
+  auto name = [&](int i) {
+    return i >= 0 && i < static_cast<int>(options_.names.size()) ? options_.names[i]
+                                                                 : fmt::format("light {}", i + 1);
+  };
+  const std::string over = options_.region.empty() ? "the lights not chosen" : "the region";
+  const std::string why =
+      options_.criterion == LightCriterion::kLargestError
+          ? fmt::format("largest predicted error{} (next: {} at {:.1f})", per,
+                        name(pick.runner_up), std::sqrt(std::max(0.0, pick.runner_up_score)))
+          : fmt::format("largest predicted reduction of the error summed over {}{}, {:.0f} "
+                        "codes² (next: {} at {:.0f})",
+                        over, per, pick.score, name(pick.runner_up), pick.runner_up_score);
+  step.reason = fmt::format(
+      "{}; its own predicted RMS {:.1f} codes = gap {:.1f} deg (to {}) x local roughness "
+      "{:.2f} codes/deg, mostly from {} (leave-one-out RMS {:.1f} codes at a gap of {:.1f} deg)",
+      why, step.predicted_rms, step.gap_deg, name(best.nearest), std::sqrt(best.roughness) / kDeg,
+      name(best.driver), std::sqrt(model.loo_mse[driver]), kDeg * model.gap[driver]);
+  return out;
+}
+
+Status LightChooser::Take(int light, const cv::Mat& img, LightChoiceStep step) {
+  if (light < 0 || light >= static_cast<int>(dirs_.size()) ||
+      std::find(chosen_.begin(), chosen_.end(), light) != chosen_.end()) {
+    return MakeError(ErrorCode::kInvalidInput, fmt::format("light {}", light),
+                     "not a light of the {} or already taken", dirs_.size());
+  }
+  choice_.images_read.push_back(light);
+  if (img.type() != CV_8UC3 || !img.isContinuous()) {
+    return MakeError(ErrorCode::kInvalidInput, fmt::format("light {}", light),
+                     "the choice reads 8-bit colour images");
+  }
+  if (pixels_.empty()) {
+    choice_.working_width = img.cols;
+    choice_.working_height = img.rows;
+    const int total = img.cols * img.rows;
+    const double stride = std::max(1.0, static_cast<double>(total) / std::max(1, options_.pixels));
+    for (double p = 0; p < total; p += stride) pixels_.push_back(static_cast<int>(p));
+  } else if (img.cols != choice_.working_width || img.rows != choice_.working_height) {
+    return MakeError(ErrorCode::kInvalidInput, fmt::format("light {}", light),
+                     "size {}x{} differs from the first image's {}x{}", img.cols, img.rows,
+                     choice_.working_width, choice_.working_height);
+  }
+  values_.conservativeResize(values_.rows() + 1, static_cast<Eigen::Index>(pixels_.size()) * 3);
+  values_.row(values_.rows() - 1) = WorkingRow(img, pixels_);
+  chosen_.push_back(light);
+  step.light = light;
+  choice_.steps.push_back(std::move(step));
+  return Ok();
+}
+
 Result<LightChoice> ChooseLights(const std::vector<Vec3>& dirs, const LightImageReader& read,
                                  const LightChoiceOptions& options) {
   const int lights = static_cast<int>(dirs.size());
@@ -215,72 +344,14 @@ Result<LightChoice> ChooseLights(const std::vector<Vec3>& dirs, const LightImage
     return MakeError(ErrorCode::kInvalidInput, "--choose", "{} lights asked of {}", options.count,
                      lights);
   }
-  const int seed = LightChoiceSeedCount(options);
-  LightChoice out;
-  std::vector<int> chosen;
-  std::vector<int> pixels;
-  Eigen::MatrixXd values;
-  auto take = [&](int light) -> Status {
-    RIG_ASSIGN_OR_RETURN(cv::Mat img, read(light));
-    out.images_read.push_back(light);
-    if (img.type() != CV_8UC3 || !img.isContinuous()) {
-      return MakeError(ErrorCode::kInvalidInput, fmt::format("light {}", light),
-                       "the choice reads 8-bit colour images");
-    }
-    if (pixels.empty()) {
-      out.working_width = img.cols;
-      out.working_height = img.rows;
-      const int total = img.cols * img.rows;
-      const double stride = std::max(1.0, static_cast<double>(total) / std::max(1, options.pixels));
-      for (double p = 0; p < total; p += stride) pixels.push_back(static_cast<int>(p));
-    } else if (img.cols != out.working_width || img.rows != out.working_height) {
-      return MakeError(ErrorCode::kInvalidInput, fmt::format("light {}", light),
-                       "size {}x{} differs from the first image's {}x{}", img.cols, img.rows,
-                       out.working_width, out.working_height);
-    }
-    values.conservativeResize(values.rows() + 1, static_cast<Eigen::Index>(pixels.size()) * 3);
-    values.row(values.rows() - 1) = WorkingRow(img, pixels);
-    chosen.push_back(light);
-    return Ok();
-  };
-  for (int light : FarthestPointLights(dirs, seed)) {
-    LightChoiceStep step;
-    step.light = light;
-    step.seed = true;
-    step.gap_deg = chosen.empty() ? 0 : kDeg * NearestAngle(dirs, chosen, dirs[light], -1);
-    step.reason = chosen.empty() ? "seed: the highest light"
-                                 : fmt::format("seed: the light farthest from those taken ({:.1f} deg)",
-                                               step.gap_deg);
-    RIG_TRY(take(light));
-    out.steps.push_back(step);
+  LightChooser chooser(dirs, options);
+  for (;;) {
+    RIG_ASSIGN_OR_RETURN(LightChooser::Proposal next, chooser.Propose());
+    if (next.stop) break;
+    RIG_ASSIGN_OR_RETURN(cv::Mat img, read(next.step.light));
+    RIG_TRY(chooser.Take(next.step.light, img, next.step));
   }
-  while (static_cast<int>(chosen.size()) < options.count) {
-    const ChosenModel model = FitChosen(dirs, chosen, values, options.ridge);
-    const Pick pick = NextLight(dirs, chosen, model, options.criterion);
-    const Prediction& best = pick.prediction;
-    const auto driver = std::find(chosen.begin(), chosen.end(), best.driver) - chosen.begin();
-    LightChoiceStep step;
-    step.light = pick.light;
-    step.gap_deg = kDeg * best.gap;
-    step.predicted_rms = std::sqrt(best.mse);
-    step.remaining_rms = std::sqrt(pick.remaining_mse);
-    const std::string why =
-        options.criterion == LightCriterion::kLargestError
-            ? fmt::format("largest predicted error (next: light {} at RMS {:.1f})",
-                          pick.runner_up + 1, std::sqrt(std::max(0.0, pick.runner_up_score)))
-            : fmt::format("largest predicted reduction of the error summed over the lights not "
-                          "chosen, {:.0f} codes² (next: light {} at {:.0f})",
-                          pick.score, pick.runner_up + 1, pick.runner_up_score);
-    step.reason = fmt::format(
-        "{}; its own predicted RMS {:.1f} codes = gap {:.1f} deg (to light {}) x local "
-        "roughness {:.2f} codes/deg, mostly from light {} (leave-one-out RMS {:.1f} codes at a "
-        "gap of {:.1f} deg)",
-        why, step.predicted_rms, step.gap_deg, best.nearest + 1, std::sqrt(best.roughness) / kDeg,
-        best.driver + 1, std::sqrt(model.loo_mse[driver]), kDeg * model.gap[driver]);
-    RIG_TRY(take(pick.light));
-    out.steps.push_back(step);
-  }
-  return out;
+  return chooser.choice();
 }
 
 Result<LightChoice> ChooseLpLights(const std::vector<LpEntry>& entries,

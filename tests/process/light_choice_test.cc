@@ -4,11 +4,15 @@
 // an even spread at the lights chosen by neither (skipped when the capture is absent).
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
+#include <tuple>
+#include <utility>
 
 #include <gtest/gtest.h>
 
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "process/evaluate/light_subset.h"
 #include "process/model/any/rti_fit.h"
@@ -201,6 +205,121 @@ TEST(LightChoice, RefusesMoreLightsThanTheCaptureHasNamingTheOption) {
 }
 
 // ---- the shared icon (72 lights) ------------------------------------------------------
+
+
+// The choice one light at a time (the rig's adaptive grid) proposes what ChooseLights chooses.
+TEST(LightChooser, ProposingAndTakingOneAtATimeChoosesWhatChooseLightsChooses) {
+  const auto dirs = DenseLights();
+  const LightChoice whole = Choose(dirs, 3.0, 20);
+  LightChoiceOptions o;
+  o.count = 20;
+  LightChooser chooser(dirs, o);
+  for (;;) {
+    auto next = chooser.Propose();
+    ASSERT_TRUE(next.ok()) << next.error().ToString();
+    if (next->stop) {
+      EXPECT_NE(next->stop_reason.find("the count"), std::string::npos) << next->stop_reason;
+      break;
+    }
+    ASSERT_TRUE(chooser.Take(next->step.light, Render(dirs[next->step.light], 3.0), next->step).ok());
+  }
+  EXPECT_EQ(chooser.choice().Chosen(), whole.Chosen());
+  for (size_t i = 0; i < whole.steps.size(); ++i)
+    EXPECT_EQ(chooser.choice().steps[i].reason, whole.steps[i].reason) << i;
+}
+
+TEST(LightChooser, RefusesALightTakenTwiceOrAnImageOfAnotherSize) {
+  const auto dirs = DenseLights();
+  LightChooser chooser(dirs, LightChoiceOptions{});
+  ASSERT_TRUE(chooser.Take(3, Render(dirs[3], 0), {}).ok());
+  auto twice = chooser.Take(3, Render(dirs[3], 0), {});
+  ASSERT_FALSE(twice.ok());
+  EXPECT_NE(twice.error().ToString().find("light 3"), std::string::npos) << twice.error().ToString();
+  cv::Mat small;
+  cv::resize(Render(dirs[4], 0), small, cv::Size(16, 16));
+  EXPECT_FALSE(chooser.Take(4, small, {}).ok());
+  EXPECT_FALSE(chooser.Take(999, Render(dirs[4], 0), {}).ok());
+  EXPECT_EQ(chooser.taken(), 1);
+}
+
+// A cost per light: with the far half of the lights (negative y) ten times dearer, the model's
+// choices after the seed go there less often than without the cost; the reason says so.
+TEST(LightChooser, ACostPerLightSteersTheChoiceToTheCheapLights) {
+  const auto dirs = DenseLights();
+  auto run = [&](bool costed) {
+    LightChoiceOptions o;
+    o.count = 24;
+    if (costed) o.cost_s = [&](int, int c) { return dirs[c][1] < 0 ? 10.0 : 1.0; };
+    LightChooser chooser(dirs, o);
+    int dear = 0;
+    std::string reason;
+    for (;;) {
+      auto next = chooser.Propose();
+      EXPECT_TRUE(next.ok());
+      if (!next.ok() || next->stop) break;
+      if (!next->step.seed) {
+        dear += dirs[next->step.light][1] < 0;
+        reason = next->step.reason;
+      }
+      EXPECT_TRUE(chooser.Take(next->step.light, Render(dirs[next->step.light], 3.0), next->step).ok());
+    }
+    return std::make_pair(dear, reason);
+  };
+  const auto [free_dear, free_reason] = run(false);
+  const auto [costed_dear, costed_reason] = run(true);
+  EXPECT_LT(costed_dear, free_dear);
+  EXPECT_EQ(free_reason.find("per second"), std::string::npos);
+  EXPECT_NE(costed_reason.find("per second of the rig's time"), std::string::npos) << costed_reason;
+}
+
+// The target: on a matte scene (a linear trend explains it) the predicted error over a
+// region comes within the target of what every light would leave before the count (the stop
+// says "the target"), and sooner than on a glossy one; with target 0 only the count stops.
+// Names given, the reasons use them.
+TEST(LightChooser, StopsAtTheTargetSoonerOnAMatteSceneThanOnAGlossyOneAndNamesTheLights) {
+  const auto dirs = DenseLights();
+  auto run = [&](double target, double gloss = 0.0) {
+    LightChoiceOptions o;
+    o.count = 60;
+    o.target = target;
+    // The region: the hemisphere sampled 4x denser than the lights (without one, the lights
+    // not taken are the region, and taking every light would leave no error at them).
+    for (int i = 0; i < 288; ++i) {
+      const double zmin = std::sin(10 * M_PI / 180), golden = M_PI * (3 - std::sqrt(5.0));
+      const double z = 1 - (1 - zmin) * (i + 0.5) / 288, r = std::sqrt(1 - z * z);
+      o.region.push_back({r * std::cos(golden * i), r * std::sin(golden * i), z});
+    }
+    for (size_t i = 0; i < dirs.size(); ++i) o.names.push_back("L" + std::to_string(i));
+    LightChooser chooser(dirs, o);
+    std::string stop, reason;
+    for (;;) {
+      auto next = chooser.Propose();
+      EXPECT_TRUE(next.ok());
+      if (!next.ok()) break;
+      if (next->stop) {
+        stop = next->stop_reason;
+        break;
+      }
+      if (!next->step.seed) {
+        reason = next->step.reason;
+        EXPECT_GE(next->step.region_rms + 1e-9, next->step.floor_rms);
+      }
+      EXPECT_TRUE(chooser.Take(next->step.light, Render(dirs[next->step.light], gloss), next->step).ok());
+    }
+    return std::make_tuple(chooser.taken(), stop, reason);
+  };
+  const auto [n_target, stop_target, reason] = run(0.1);
+  const auto [n_count, stop_count, reason0] = run(0);
+  const auto [n_glossy, stop_glossy, reason_glossy] = run(0.1, 3.0);
+  std::printf("target 10%%: matte %d lights, glossy %d (%s)\n", n_target, n_glossy, stop_glossy.c_str());
+  EXPECT_LT(n_target, 60);
+  EXPECT_LT(n_target, n_glossy);
+  EXPECT_NE(stop_target.find("the target"), std::string::npos) << stop_target;
+  EXPECT_EQ(n_count, 60);
+  EXPECT_NE(stop_count.find("the count"), std::string::npos) << stop_count;
+  EXPECT_NE(reason0.find("(to L"), std::string::npos) << reason0;
+  EXPECT_EQ(reason0.find("light "), std::string::npos) << reason0;
+}
 
 TEST(LightChoiceOnTheIcon, TwentyFourChosenBeatTwentyFourSpreadAtTheLightsInNeither) {
   const fs::path lp = fs::path(testing::SharedDir()) / "data/rti/neuralrti-example/dirs.lp";

@@ -263,7 +263,9 @@ TEST(DaemonService, ProcessJobMergesAndFitsAndPreviewsServeJpeg) {
   std::string events;
   auto sse = c.Get("/api/events?since=1", [&](const char* data, size_t n) {
     events.append(data, n);
-    return events.find("event: status") == std::string::npos;  // stop reading once it came
+    // Stop reading once the status event came whole (it may arrive in several chunks).
+    const size_t at = events.find("event: status");
+    return at == std::string::npos || events.find("\n\n", at) == std::string::npos;
   });
   const size_t records = Records(a).size();
   EXPECT_NE(events.find("id: 1\nevent: journal\ndata: {"), std::string::npos) << events.substr(0, 300);

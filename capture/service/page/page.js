@@ -36,8 +36,15 @@ function drawGrid(grid) {
     c.setAttribute("cx", x(p.h_deg)); c.setAttribute("cy", y(p.v_deg));
     c.setAttribute("r", p.state === "next" ? 8 : 6); c.setAttribute("class", p.state);
     c.setAttribute("data-pose", p.name);
-    const t = document.createElementNS(NS, "title"); t.textContent = p.name; c.appendChild(t);
+    const t = document.createElementNS(NS, "title");
+    t.textContent = p.name + (p.choice ? " (chosen " + p.choice + ")" : p.state === "allowed" ? " (allowed, not chosen)" : "");
+    c.appendChild(t);
     svg.appendChild(c);
+    if (p.choice) {  // an adaptive grid: the order the poses were chosen in
+      const n = document.createElementNS(NS, "text"); n.setAttribute("class", "choice");
+      n.setAttribute("x", x(p.h_deg)); n.setAttribute("y", y(p.v_deg) + 2.5); n.textContent = p.choice;
+      svg.appendChild(n);
+    }
   }
   hs.forEach(h => { const t = document.createElementNS(NS, "text"); t.setAttribute("x", x(h) - 6);
     t.setAttribute("y", 162); t.textContent = h + "\u00b0"; svg.appendChild(t); });
@@ -60,6 +67,13 @@ function render(s) {
   $("eta").textContent = fmtTime(s.eta_s);
   if (s.model) $("model").textContent = s.model.radiance_maps + " of " + s.model.poses +
       " radiance maps; " + s.model.phase + (s.model.fitting_s != null ? " " + fmtTime(s.model.fitting_s) : "");
+  const ch = s.choice;
+  $("choice-row").hidden = $("choice").hidden = !ch;
+  $("grid-legend").textContent = ch ? "horizontal angle across, vertical up; numbered in the order chosen, green stored, " +
+      "yellow next, dashed allowed" : "horizontal angle across, vertical up; green stored, yellow next";
+  if (ch) $("choice").textContent = ch.chosen + " of at most " + ch.max_poses + " poses chosen (" + ch.allowed +
+      " allowed); predicted error " + (ch.predicted_rms != null ? ch.predicted_rms.toFixed(2) + " codes (" +
+      ch.floor_rms.toFixed(2) + " with every pose)" : "- (the seed)") + (ch.stopped ? "; stopped: " + ch.stopped : "");
   $("queue").textContent = s.queue.length ? s.queue.map(q => q.id + " " + q.kind).join(", ") : "empty";
   drawGrid(s.grid || []);
   const faults = [];
