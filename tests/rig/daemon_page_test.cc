@@ -152,7 +152,9 @@ max_poses = 14
   EXPECT_GE(s["choice"]["predicted_rms"].get<double>(), s["choice"]["floor_rms"].get<double>());
   EXPECT_TRUE(s["choice"]["stopped"].is_null());
   // The pose count is the most the grid takes, not the poses allowed.
-  if (s["pose"].is_object()) EXPECT_EQ(s["pose"]["total"], 14);
+  if (s["pose"].is_object()) {
+    EXPECT_EQ(s["pose"]["total"], 14);
+  }
   EXPECT_EQ(s["frames"]["total"], 14 * 3);
   int numbered = 0, allowed = 0;
   for (const auto& p : s["grid"]) {
