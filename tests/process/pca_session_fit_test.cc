@@ -146,5 +146,48 @@ TEST_F(PcaSessionFitTest, TheCurveSampledInBandsInAnyOrderIsTheWholeMapsCurve) {
   EXPECT_GT(banded.max, 0);
 }
 
+// The per-byte choice's rule: the smallest candidate in the budget whose excess of squared
+// held-out error over the best's is within one standard error of that excess across the lamps
+// held out. Known answers: the per-lamp shares sum to the relative error squared, the best's
+// excess is 0, the chosen is within noise, every smaller candidate in the budget is not; at
+// noise_z = 0 the best itself is chosen, and a huge noise_z takes the smallest.
+TEST_F(PcaSessionFitTest, TheChoiceTakesTheSmallestCandidateWithinTheNoiseOfTheBest) {
+  PcaHdrChoiceOptions o = options_;
+  o.components = {2, 6, 9};
+  o.qualities = {60, 95};
+  auto fit = ChoosePcaHdr(maps_, directions_, lamp_, o);
+  ASSERT_TRUE(fit.ok()) << fit.error().ToString();
+  ASSERT_EQ(fit->candidates.size(), 2u * 3u * 2u);
+  const auto& best = fit->candidates[fit->best];
+  const auto& chosen = fit->candidates[fit->chosen];
+  EXPECT_EQ(best.excess, 0);
+  for (const auto& c : fit->candidates) {
+    double sum = 0;
+    for (double e : c.per_lamp) sum += e;
+    EXPECT_EQ(c.per_lamp.size(), 5u);  // 28 lamps, every 6th held out: 0, 6, ..., 24
+    EXPECT_NEAR(std::sqrt(sum), c.held_out_relative, 1e-12);
+    EXPECT_GE(c.held_out_relative, best.held_out_relative);
+    EXPECT_GE(c.excess_se, 0);
+    if (c.bytes_per_pixel < chosen.bytes_per_pixel) {
+      EXPECT_GT(c.excess, c.excess_se) << c.components;
+    }
+  }
+  EXPECT_LE(chosen.excess, chosen.excess_se);
+  EXPECT_NE(fit->reason.find("standard error"), std::string::npos) << fit->reason;
+  // The two-component candidates are beyond the noise of the best.
+  EXPECT_GT(fit->candidates[0].excess, fit->candidates[0].excess_se) << PcaHdrChoiceMarkdown(*fit);
+  EXPECT_GT(fit->candidates[0].held_out_relative, 0.1);  // a map's non-finite samples left out
+
+  o.noise_z = 0;
+  auto strict = ChoosePcaHdr(maps_, directions_, lamp_, o);
+  ASSERT_TRUE(strict.ok());
+  EXPECT_EQ(strict->chosen, strict->best);
+  o.noise_z = 1e9;
+  auto loose = ChoosePcaHdr(maps_, directions_, lamp_, o);
+  ASSERT_TRUE(loose.ok());
+  for (const auto& c : loose->candidates)
+    EXPECT_GE(c.bytes_per_pixel, loose->candidates[loose->chosen].bytes_per_pixel);
+}
+
 }  // namespace
 }  // namespace rig

@@ -28,20 +28,55 @@ PcaOptions BaseOptions(const PcaHdrChoiceOptions& o) {
   return po;
 }
 
-// Relative RMS of the model's ρ against the measured ρ at the held-out lamps.
-double HeldOutError(const ReflectanceModel& m, const std::vector<cv::Mat>& radiance,
-                    const std::vector<Vec3>& directions, const std::vector<int>& held,
-                    const std::array<double, 3>& lamp) {
-  double err = 0, ref = 0;
-  const cv::Scalar lamp_bgr(lamp[2], lamp[1], lamp[0]);
+// The model's squared error of ρ against the measured ρ at each held-out lamp, as a share of
+// the measured ρ's squares over all of them (the shares sum to the relative error squared).
+// Samples that are not finite in the map (a merged map can hold a few) are left out of both.
+std::vector<double> HeldOutErrors(const ReflectanceModel& m, const std::vector<cv::Mat>& radiance,
+                                  const std::vector<Vec3>& directions, const std::vector<int>& held,
+                                  const std::array<double, 3>& lamp) {
+  std::vector<double> err;
+  double ref = 0;
+  const double inv[3] = {1 / lamp[2], 1 / lamp[1], 1 / lamp[0]};  // B, G, R
   for (int l : held) {
-    cv::Mat truth;
-    cv::divide(radiance[l], lamp_bgr, truth);
     const cv::Mat pred = m.EvaluateRho(directions[l]);
-    err += cv::norm(pred, truth, cv::NORM_L2SQR);
-    ref += cv::norm(truth, cv::NORM_L2SQR);
+    const cv::Mat& map = radiance[l];
+    double e = 0;
+    for (int y = 0; y < map.rows; ++y) {
+      const auto* t = map.ptr<cv::Vec3f>(y);
+      const auto* p = pred.ptr<cv::Vec3f>(y);
+      for (int x = 0; x < map.cols; ++x)
+        for (int c = 0; c < 3; ++c) {
+          const double truth = t[x][c] * inv[c];
+          if (!std::isfinite(truth)) continue;
+          const double d = p[x][c] - truth;
+          e += d * d;
+          ref += truth * truth;
+        }
+    }
+    err.push_back(e);
   }
-  return ref > 0 ? std::sqrt(err / ref) : 0;
+  for (double& e : err) e = ref > 0 ? e / ref : 0;
+  return err;
+}
+
+double Sum(const std::vector<double>& v) {
+  double s = 0;
+  for (double x : v) s += x;
+  return s;
+}
+
+// The excess of a's squared relative error over b's, summed over the lamps, and its standard
+// error: the lamps held out taken as a sample of the lamps, the excess a sum of n paired terms.
+void PairedExcess(const std::vector<double>& a, const std::vector<double>& b, double* excess,
+                  double* se) {
+  const size_t n = std::min(a.size(), b.size());
+  double mean = 0;
+  for (size_t i = 0; i < n; ++i) mean += a[i] - b[i];
+  *excess = mean;
+  mean /= std::max<size_t>(1, n);
+  double ss = 0;
+  for (size_t i = 0; i < n; ++i) ss += (a[i] - b[i] - mean) * (a[i] - b[i] - mean);
+  *se = n > 1 ? std::sqrt(static_cast<double>(n) * ss / static_cast<double>(n - 1)) : 0;
 }
 
 // Every candidate of one curve, fitted to the fold's maps and scored at the held-out lamps.
@@ -82,7 +117,8 @@ Status ScoreCurve(const PcaHdrCurveCandidate& cc, const std::vector<cv::Mat>& ra
         r.resolution = res;
         r.quality = q;
         r.bytes_per_pixel = static_cast<double>(bytes) / pixels;
-        r.held_out_relative = HeldOutError(*WrapPca(std::move(back)), radiance, directions, held, lamp);
+        r.per_lamp = HeldOutErrors(*WrapPca(std::move(back)), radiance, directions, held, lamp);
+        r.held_out_relative = std::sqrt(Sum(r.per_lamp));
         r.within_budget = r.bytes_per_pixel <= o.max_bytes_per_pixel;
         out->push_back(r);
       }
@@ -169,10 +205,11 @@ Result<PcaHdrFit> ChoosePcaHdr(const std::vector<cv::Mat>& radiance,
       if (fit.best < 0 || fit.candidates[i].bytes_per_pixel < fit.candidates[fit.best].bytes_per_pixel)
         fit.best = static_cast<int>(i);
   }
-  const double limit = fit.candidates[fit.best].held_out_relative * (1 + o.tolerance);
+  for (auto& c : fit.candidates)
+    PairedExcess(c.per_lamp, fit.candidates[fit.best].per_lamp, &c.excess, &c.excess_se);
   for (size_t i = 0; i < fit.candidates.size(); ++i) {
     const auto& c = fit.candidates[i];
-    if (c.within_budget && c.held_out_relative <= limit &&
+    if (c.within_budget && c.excess <= o.noise_z * c.excess_se &&
         (fit.chosen < 0 || c.bytes_per_pixel < fit.candidates[fit.chosen].bytes_per_pixel))
       fit.chosen = static_cast<int>(i);
   }
@@ -183,11 +220,11 @@ Result<PcaHdrFit> ChoosePcaHdr(const std::vector<cv::Mat>& radiance,
   fit.options = PcaHdrModelOptions(o, ch.components, ch.resolution, ch.quality);
   fit.reason = fmt::format(
       "{} curve, {} components on a {}x{} grid at JPEG q{}: {:.4f} relative error at the {} lamps "
-      "held out, {:.2f} B/px — the smallest of {} candidates within {:.0f}% of the best under "
-      "{:.1f} B/px ({} k{} {}x{} q{}: {:.4f}, {:.2f} B/px)",
+      "held out, {:.2f} B/px — the smallest of {} candidates within {:g} standard error of the "
+      "best under {:.1f} B/px, the error's noise measured across the lamps held out ({} k{} {}x{} "
+      "q{}: {:.4f}, {:.2f} B/px)",
       ch.curve, ch.components, ch.resolution, ch.resolution, ch.quality, ch.held_out_relative,
-      held.size(), ch.bytes_per_pixel, fit.candidates.size(), 100 * o.tolerance,
-      o.max_bytes_per_pixel, best.curve, best.components, best.resolution, best.resolution,
+      held.size(), ch.bytes_per_pixel, fit.candidates.size(), o.noise_z, o.max_bytes_per_pixel, best.curve, best.components, best.resolution, best.resolution,
       best.quality, best.held_out_relative, best.bytes_per_pixel);
   if (over_budget) {
     fit.reason = fmt::format("no candidate fits {:.1f} B/px at {}x{} (the grid is stored whatever the "
@@ -215,12 +252,15 @@ Result<PcaHdrFit> FitPcaHdrAuto(const std::vector<cv::Mat>& radiance,
 }
 
 std::string PcaHdrChoiceMarkdown(const PcaHdrFit& fit) {
-  std::string md = "| curve | components | grid | JPEG q | B/px | held-out relative error | |\n"
-                   "|---|---|---|---|---|---|---|\n";
+  std::string md =
+      "| curve | components | grid | JPEG q | B/px | held-out relative error | excess of its "
+      "square over the best's (± standard error across the lamps) | |\n"
+      "|---|---|---|---|---|---|---|---|\n";
   for (size_t i = 0; i < fit.candidates.size(); ++i) {
     const auto& c = fit.candidates[i];
-    md += fmt::format("| {} | {} | {} | {} | {:.2f} | {:.4f} | {} |\n", c.curve, c.components,
-                      c.resolution, c.quality, c.bytes_per_pixel, c.held_out_relative,
+    md += fmt::format("| {} | {} | {} | {} | {:.2f} | {:.4f} | {:.2e} ± {:.2e} | {} |\n", c.curve,
+                      c.components, c.resolution, c.quality, c.bytes_per_pixel, c.held_out_relative,
+                      c.excess, c.excess_se,
                       static_cast<int>(i) == fit.chosen ? "**chosen**"
                       : static_cast<int>(i) == fit.best ? "best"
                       : c.within_budget                 ? ""

@@ -1,8 +1,9 @@
 // The PCA model of a session's radiance maps, its value curve and size chosen per byte:
 // every candidate (curve, components, grid, JPEG quality) fitted without every n-th lamp,
-// encoded as it ships, decoded back (in memory: the files' own bytes) and scored in linear reflectance at the lamps held out; the
-// smallest candidate within a tolerance of the best that fits the byte budget is fitted again
-// on every lamp. Everything comes from the maps given, so run inside a fold it is a choice made
+// encoded as it ships, decoded back (in memory: the files' own bytes) and scored in linear
+// reflectance at the lamps held out; the smallest candidate within the measurement's noise of
+// the best (its excess error within a standard error measured across the held-out lamps) that
+// fits the byte budget is fitted again on every lamp. Everything comes from the maps given, so run inside a fold it is a choice made
 // inside the fold. When no candidate fits the budget (a small image: the grid is stored
 // whatever the image's size) the smallest is taken and the reason says so.
 #pragma once
@@ -32,7 +33,10 @@ struct PcaHdrChoiceOptions {
   std::vector<int> resolutions = {32};
   std::vector<int> qualities = {95, 100};
   double max_bytes_per_pixel = 30;
-  double tolerance = 0.01;   // relative: within 1% of the best held-out error
+  // A candidate is within the noise of the best when its excess of squared held-out error over
+  // the best's is at most `noise_z` standard errors of that excess, the standard error measured
+  // across the lamps held out (paired: both candidates at the same lamps). 0 = the best only.
+  double noise_z = 1.0;
   int validation_every = 6;  // every n-th lamp held out
   double high = 0.9999;      // the curve's max at this quantile of ρ
   int threads = 2;           // the curves' candidates are scored this many at once
@@ -43,6 +47,11 @@ struct PcaHdrCandidate {
   int components = 0, resolution = 0, quality = 0;
   double bytes_per_pixel = 0;  // the fold's model as written
   double held_out_relative = 0;  // RMS(model ρ − measured ρ) / RMS(measured ρ) at held-out lamps
+  // Per held-out lamp: Σ(model ρ − measured ρ)² over the pixels, ÷ Σ(measured ρ)² over every
+  // held-out lamp (so they sum to held_out_relative²).
+  std::vector<double> per_lamp;
+  // Against the best: the excess of held_out_relative² and its standard error across the lamps.
+  double excess = 0, excess_se = 0;
   bool within_budget = false;
 };
 
