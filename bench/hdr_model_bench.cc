@@ -17,8 +17,8 @@
 // for each curve, PCA of each K components, R×R grid, JPEG quality Q, the PCA size choice of
 // the photographs' path (ChoosePca, code-space error) within each budget, neural models.
 //
-// The session's own model (the dry run's default, from model/model.exr as written) is the
-// first row; a folder left by an earlier run with the same size is reused (--fresh: not).
+// The session's own model (the dry run's default family: model/pca/ or model/model.exr, as
+// written) is the first row; a folder left by an earlier run with the same size is reused (--fresh: not).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -32,6 +32,7 @@
 
 #include "capture/daemon/session_model.h"
 #include "capture/plan/pose.h"
+#include "capture/session/render_source.h"
 #include "capture/session/session_store.h"
 #include "config/builtin_config.h"
 #include "process/io/exr_io.h"
@@ -165,7 +166,7 @@ Reference Prepare(const Args& a) {
   const fs::path offset = a.dir / "offset";
   if (a.fresh) fs::remove_all(a.dir);
   fs::create_directories(a.dir);
-  if (!fs::exists(session / "model" / "model.exr")) {
+  if (!fs::exists(session / "model" / "report.md")) {
     fs::remove_all(session);
     const auto t = Clock::now();
     Must(rig::RunSimulatedSession(ref.config, session));
@@ -458,8 +459,9 @@ int main(int argc, char** argv) {
               OffsetGrid(ref.config).grid.v_min_deg, OffsetGrid(ref.config).grid.v_max_deg,
               cv::countNonZero(ref.shadowed), static_cast<int>(ref.shadowed.total()));
   std::printf("%-34s %8s %8s   %-6s  %-6s  %-6s\n", "model", "B/px", "fit s", "all", "lit", "shadow");
-  Row("session default (model/model.exr)", (a.dir / "session" / "model" / "model.exr").string(), 0, ref,
-      "as the dry run wrote it");
+  const std::string session_model = Must(rig::ResolveRenderSource((a.dir / "session").string())).model_path;
+  Row(fmt::format("session default ({})", fs::path(session_model).filename().string()), session_model, 0,
+      ref, "as the dry run wrote it");
   InterpolationRow(ref);
   if (a.hdr_auto) HdrAutoRow(a, ref);
   HarmonicRows(a, ref);

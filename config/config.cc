@@ -455,7 +455,7 @@ void VisitProcessSection(Config& c, V& v) {
   v.Field("hdr_compression", p.hdr_compression,
           {"none", "rle", "zips", "zip", "zip-fast", "piz"});
   v.Field("merge_weighting", p.merge_weighting, {"hat", "photon", "noise"});
-  v.Field("model_family", p.model_family, {"harmonic", "pca"});
+  v.Field("model_family", p.model_family, {"auto", "harmonic", "pca"});
   v.Field("pca_max_bytes_per_pixel", p.pca_max_bytes_per_pixel, Range{0.1, 1e4});
   v.Field("basis", p.basis, {"sh", "hsh", "ptm"});
   v.Field("fit_method", p.fit_method, {"quadrature", "ls", "rls"});

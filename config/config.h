@@ -146,11 +146,14 @@ struct ProcessConfig {
   // they are written while the arm moves on, so the smallest common choice wins over speed.
   std::string hdr_compression = "zip";
   std::string merge_weighting = "noise";  // "hat" | "photon" | "noise" (docs/hdr.md)
-  // Reflectance model: "harmonic" (a fixed basis: basis, fit_method, order below) or "pca"
-  // (components of the session's reflectance through an HDR value curve, light dependence on
-  // an octahedral grid, relight's web format in model/pca/; its curve and size chosen at
-  // held-out lamps per byte within pca_max_bytes_per_pixel; docs/model.md).
-  std::string model_family = "harmonic";
+  // Reflectance model: "auto" (the family chosen per byte at held-out lamps: the PCA family's
+  // own choice against the harmonic family's, the smaller unless the other is more accurate
+  // beyond the measurement's noise; harmonic for a near lamp), "harmonic" (a fixed basis:
+  // basis, fit_method, order below; model/model.exr) or "pca" (components of the session's
+  // reflectance through an HDR value curve, light dependence on an octahedral grid, relight's
+  // web format in model/pca/; its curve and size chosen at held-out lamps per byte within
+  // pca_max_bytes_per_pixel). docs/model.md.
+  std::string model_family = "auto";
   double pca_max_bytes_per_pixel = 30;
   std::string basis = "sh";             // "sh" | "hsh" | "ptm"
   std::string fit_method = "rls";       // "quadrature" | "ls" | "rls"

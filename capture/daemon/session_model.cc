@@ -15,6 +15,7 @@
 #include "process/model/pca/pca_hdr.h"
 #include "process/model/session/map_fit.h"
 #include "process/model/session/model_stream.h"
+#include "process/model/session/family_choice.h"
 #include "process/model/session/pca_session.h"
 
 namespace rig {
@@ -101,7 +102,7 @@ std::string SessionFitReport(const Session& session, const StreamFitOutput& fit,
 // values either way, so the same model — its value curve and size chosen per byte on the
 // maps' central region (FitPcaHdrFromBands), the folder written whole.
 Status FitSessionPca(const Session& session, MapBands& bands, const StreamFitInput& in,
-                     const std::string& source) {
+                     const std::string& source, const SessionFamilyChoice* family) {
   auto log = Log("process");
   const Config& config = session.config();
   const SessionLayout& layout = session.layout();
@@ -118,7 +119,8 @@ Status FitSessionPca(const Session& session, MapBands& bands, const StreamFitInp
   PcaSessionFit fit;
   RIG_TRY(WriteModelFolder(out.string(), [&](const std::string& dir) -> Status {
     RIG_ASSIGN_OR_RETURN(fit, FitPcaHdrFromBands(bands, in.directions, in.lamp_radiance_rgb,
-                                                 config.light_frame, o, dir));
+                                                 config.light_frame, o, dir, 32,
+                                                 family ? &family->pca : nullptr));
     return Ok();
   }));
   const double pixels = static_cast<double>(fit.width) * fit.height;
@@ -134,7 +136,7 @@ Status FitSessionPca(const Session& session, MapBands& bands, const StreamFitInp
       in.directions.size(), bpp, fit.time_s, source, fit.choice_s, fit.gather_s, fit.write_s,
       fit.choice.reason, r.width, r.height, r.x, r.y,
       r.width == fit.width && r.height == fit.height ? " (the whole image)" : " (the central region)",
-      PcaHdrChoiceMarkdown(fit.choice));
+      family ? SessionFamilyMarkdown(*family) : PcaHdrChoiceMarkdown(fit.choice));
   Status st = WriteFileAtomic(layout.model() / "report.md", report);
   if (!st.ok()) log->warn("{}", st.error().ToString());
   ConsoleLine(stdout, fmt::format("model: {} (pca, {} components, {}x{} grid, JPEG q{}, {} curve, "
@@ -172,10 +174,41 @@ Status FitSessionModel(const Session& session, const MapStore* maps) {
     log->info("lamp radiance from the reference patch: R={:.4g} G={:.4g} B={:.4g}",
               in.lamp_radiance_rgb[0], in.lamp_radiance_rgb[1], in.lamp_radiance_rgb[2]);
   }
-  if (config.process.model_family == "pca") return FitSessionPca(session, *bands, in, source);
   RIG_ASSIGN_OR_RETURN(FitOptions options, FitOptionsFromConfig(config.process));
-  options.threads = config.process.threads;
   ExrPixelType type = config.process.model_pixel_type == "float" ? ExrPixelType::kFloat : ExrPixelType::kHalf;
+  std::string family = config.process.model_family;
+  std::unique_ptr<SessionFamilyChoice> choice;
+  std::string family_note;
+  if (family == "auto" && in.near_lamp.near()) {
+    family = "harmonic";
+    family_note = "\n## The family\n\nharmonic: the lamp is near ([light_frame] lamp_distance_mm), "
+                  "and only the harmonic family models its fall-off.\n";
+    log->info("model family: harmonic (a near lamp: only the harmonic family models its fall-off)");
+  } else if (family == "auto" && in.directions.size() < 8) {
+    family = "harmonic";
+    family_note = fmt::format("\n## The family\n\nharmonic: {} radiance maps, and the PCA family "
+                              "needs 8 or more.\n", in.directions.size());
+    log->info("model family: harmonic ({} maps: the PCA family needs 8 or more)", in.directions.size());
+  } else if (family == "auto") {
+    ProgressTask task("choosing the model's family", 1);
+    RIG_ASSIGN_OR_RETURN(std::vector<cv::Mat> region, ReadChoiceRegion(*bands));
+    PcaHdrChoiceOptions po;
+    po.max_bytes_per_pixel = config.process.pca_max_bytes_per_pixel;
+    po.threads = config.process.threads;
+    po.warn_over_budget = false;  // the family's choice weighs the bytes itself
+    FitOptions fold = options;
+    fold.threads = config.process.threads;
+    auto chosen = ChooseSessionFamily(region, in.directions, in.lamp_radiance_rgb, fold,
+                                      type == ExrPixelType::kFloat ? 4 : 2, po);
+    if (!chosen.ok()) return chosen.error().Within("the model family's choice");
+    choice = std::make_unique<SessionFamilyChoice>(std::move(*chosen));
+    family = choice->family;
+    task.Advance(1);
+    log->info("model family: {} ({:.2f} s)", choice->reason, choice->time_s);
+    family_note = "\n" + SessionFamilyMarkdown(*choice);
+  }
+  if (family == "pca") return FitSessionPca(session, *bands, in, source, choice.get());
+  options.threads = config.process.threads;
   in.compression = *ParseExrCompression(config.process.model_compression);  // validated on load
   // model/ inside the session, never through a link.
   RIG_ASSIGN_OR_RETURN(fs::path model_dir, EnsureSessionFolder(layout.root, "model"));
@@ -190,7 +223,8 @@ Status FitSessionModel(const Session& session, const MapStore* maps) {
   const auto model_bytes = fs::file_size(out, ec);
   const double pixels = static_cast<double>(fit.width) * static_cast<double>(fit.height);
   const double bpp = ec || pixels <= 0 ? 0.0 : static_cast<double>(model_bytes) / pixels;
-  Status st = WriteFileAtomic(layout.model() / "report.md", SessionFitReport(session, fit, bpp));
+  Status st = WriteFileAtomic(layout.model() / "report.md",
+                              SessionFitReport(session, fit, bpp) + family_note);
   if (!st.ok()) log->warn("{}", st.error().ToString());
   log->info("model written file={} order={} terms={} loo_rmse={:.5g} time_s={:.2f}", out.string(),
             fit.selection.order, fit.selection.projector.basis.size(), fit.loo_rmse, fit.time_s);

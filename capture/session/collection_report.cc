@@ -92,12 +92,28 @@ void ReadSession(const fs::path& dir, const fs::path& entry, const fs::path& ses
         "basis (\\S+), method (\\S+), fit space (\\S+); chosen order (\\d+) \\((\\d+) terms\\); "
         "leave-one-out RMS error ([-+0-9.eE]+)[^;]*; ([-+0-9.eE]+) bytes per pixel on disk; "
         "fitted in ([-+0-9.eE]+) s");
+    static const std::regex kPcaLine(
+        "PCA of the reflectance \\(radiance / lamp radiance\\) of \\d+ radiance maps, "
+        "([-+0-9.eE]+) B/px on disk, fitted in ([-+0-9.eE]+) s");
+    static const std::regex kPcaChoice(
+        "(\\S+) curve, (\\d+) components on a (\\d+)x\\d+ grid at JPEG q(\\d+):");
     if (std::regex_search(md, m, kLine)) {
       r->model = fmt::format("{} {} order {} ({} terms, {} space)", m[1].str(), m[2].str(), m[4].str(),
                              m[5].str(), m[3].str());
       r->loo_rms_fit_space = Num(m[6]);
       r->bpp = Num(m[7]);
       r->fit_time_s = Num(m[8]);
+    } else if (std::regex_search(md, m, kPcaLine)) {
+      // A PCA session model (model/pca/): its size and time, then the chosen candidate.
+      r->bpp = Num(m[1]);
+      r->fit_time_s = Num(m[2]);
+      std::smatch c;
+      if (std::regex_search(md, c, kPcaChoice)) {
+        r->model = fmt::format("pca {} curve, {} components, {}x{} grid, q{}", c[1].str(), c[2].str(),
+                               c[3].str(), c[3].str(), c[4].str());
+      } else {
+        r->model = "pca";
+      }
     } else {
       r->faults.push_back(report.string() + ": not a model report rig wrote");
     }

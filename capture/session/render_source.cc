@@ -15,16 +15,24 @@ Result<RenderSource> ResolveRenderSource(const std::string& source,
     // A model folder (relight's web format): no session around it.
     in.model_path = source;
   } else if (fs::is_directory(p)) {
-    // A session folder: its model (the family its configuration fits: model/model.exr, or
-    // model/pca/ for [process] model_family = "pca"), its response curve, its display settings.
+    // A session folder: its model — model/model.exr (the harmonic family) or model/pca/ (the
+    // PCA family's folder) — the one its configuration names, or for "auto" (or no
+    // configuration) whichever was written last; its response curve, its display settings.
     const SessionLayout layout{p};
     in.model_path = (layout.model() / "model.exr").string();
     const fs::path pca = layout.model() / "pca";
     if (fs::exists(pca / "info.json")) {
       bool pca_family = !fs::exists(in.model_path);
-      if (!pca_family && fs::exists(layout.config())) {
-        auto config = LoadConfigOrError(layout.config().string());
-        pca_family = config.ok() && config->process.model_family == "pca";
+      if (!pca_family) {
+        std::string family = "auto";
+        if (fs::exists(layout.config())) {
+          auto config = LoadConfigOrError(layout.config().string());
+          if (config.ok()) family = config->process.model_family;
+        }
+        std::error_code e1, e2;
+        const auto pca_time = fs::last_write_time(pca / "info.json", e1);
+        const auto exr_time = fs::last_write_time(in.model_path, e2);
+        pca_family = family == "pca" || (family == "auto" && !e1 && (e2 || pca_time > exr_time));
       }
       if (pca_family) in.model_path = pca.string();
     }

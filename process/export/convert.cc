@@ -277,13 +277,23 @@ Result<Conversion> ConvertToRelight(const ReflectanceModel& model, const Relight
     // rgb PTM to lrgb: factorised below, from the coefficients themselves.
     return Finish(model, *rc, target, lights, false, "ptm rgb", 0);
   }
-  RIG_ASSIGN_OR_RETURN(RelightCoefficients c, Refit(model, target, lights, 1.0));
+  // A model of radiance maps (linear ρ, relative to the capture lamp) is scaled to display
+  // values as a harmonic session's model is; a photographs' model holds display values.
+  // It is refitted at the lights it was fitted to, when it knows them (as a harmonic session's).
+  const bool linear = model.encoding() == ValueEncoding::kLinear;
+  const std::vector<Vec3> fitted = model.fitted_lights();
+  if (linear && !fitted.empty()) lights = fitted;
+  const double gain = linear ? DisplayGain(model, lights) : 1.0;
+  RIG_ASSIGN_OR_RETURN(RelightCoefficients c, Refit(model, target, lights, gain));
   c.lights = rc ? rc->lights : std::vector<Vec3>{};
-  return Finish(model, std::move(c), target, lights, false,
-                fmt::format("{} refitted onto relight's {} {} terms by least squares at {} lights",
-                            model.family(), RelightTypeName(target.type), target.terms,
-                            lights.size()),
-                0);
+  if (linear && !fitted.empty()) c.lights = fitted;
+  std::string how = fmt::format("{} refitted onto relight's {} {} terms by least squares at {} {}",
+                                model.family(), RelightTypeName(target.type), target.terms,
+                                lights.size(), linear && !fitted.empty() ? "sampled lights" : "lights");
+  if (gain != 1) {
+    how += fmt::format("; rho scaled by {:.4g} (its 99.5th percentile at those lights is white)", gain);
+  }
+  return Finish(model, std::move(c), target, lights, false, std::move(how), 0, gain);
 }
 
 double RenderPsnrDb(const ReflectanceModel& a, const ReflectanceModel& b,

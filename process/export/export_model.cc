@@ -118,17 +118,12 @@ Result<ExportSource> ConvertForExport(const std::string& path, const ExportReque
     s.model = WrapHarmonic(std::move(m));
   } else {
     RIG_ASSIGN_OR_RETURN(s.model, LoadAnyModel(path));
-    if (request.format == "relight" && s.model->family() == "pca-bilinear" && request.basis.empty()) {
-      // A session's PCA model holds reflectance of radiance maps through an HDR curve
-      // (info.json's rig.values), which relight's readers do not know: they would show the
-      // codes as sRGB photographs, wrong in brightness and contrast. Refused, not copied.
-      if (s.model->encoding() == ValueEncoding::kLinear) {
-        return MakeError(ErrorCode::kUnsupported, path,
-                         "this PCA model holds HDR reflectance codes (info.json rig.values: a value "
-                         "curve over radiance / lamp radiance), not relight's 8-bit sRGB planes; "
-                         "relight and OpenLIME would decode them as photographs (rig view writes "
-                         "a relighting page of it)");
-      }
+    // A photographs' PCA model is relight's own format: its files, as they are. A session's PCA
+    // model holds reflectance of radiance maps through an HDR curve (info.json's rig.values),
+    // which relight's readers do not know (they would show the codes as sRGB photographs):
+    // it is refitted into 8-bit display values, as a harmonic session's model is.
+    if (request.format == "relight" && s.model->family() == "pca-bilinear" && request.basis.empty() &&
+        s.model->encoding() != ValueEncoding::kLinear) {
       s.as_stored = true;
       return s;
     }

@@ -17,6 +17,7 @@
 
 #include "capture/session/session_store.h"
 #include "tests/support/run_rig.h"
+#include "tests/support/session_model.h"
 
 namespace rig {
 namespace {
@@ -125,7 +126,7 @@ TEST(CaptureSession, DryRunStoresJournalsFramesTruthRadianceMapsAndModel) {
   int hdr = 0;
   for (const auto& e : fs::directory_iterator(session / "hdr")) hdr += e.path().extension() == ".exr";
   EXPECT_EQ(hdr, 40);
-  EXPECT_TRUE(fs::exists(session / "model" / "model.exr"));
+  EXPECT_TRUE(testing::SessionHasModel(session));
   EXPECT_THAT(r.output, HasSubstr("frames 160"));
   // A second capture into the same folder is refused; nothing is overwritten.
   CommandResult again = RunRig("capture --config " + cfg + " --out " + session.string() + " --dry-run --no-progress");

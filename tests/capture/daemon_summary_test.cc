@@ -80,7 +80,8 @@ TEST(CaptureSummary, WhenTheShutterIsWaitedForItIsAPartOfTheCameraTime) {
 
 TEST(CaptureSummary, TheModelsLeaveOneOutErrorCarriesItsUnit) {
   const std::string dir = testing::FreshTempDir("summary_loo_unit");
-  const std::string cfg = testing::WriteSimConfig(dir, "[sim]\nwidth = 48\nheight = 36\n[bracket]\ncount = 3\n");
+  const std::string cfg = testing::WriteSimConfig(
+      dir, "[sim]\nwidth = 48\nheight = 36\n[bracket]\ncount = 3\n[process]\nmodel_family = \"harmonic\"\n");
   auto r = testing::RunRig("capture --config " + cfg + " --out " + dir + "/S --no-progress 2>&1");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_THAT(r.output, HasSubstr("leave-one-out RMS error"));

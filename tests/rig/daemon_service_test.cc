@@ -17,6 +17,7 @@
 #include "capture/session/session_store.h"
 #include "rig/commands/daemon_client.h"
 #include "tests/support/run_rig.h"
+#include "tests/support/session_model.h"
 
 namespace rig {
 namespace {
@@ -239,12 +240,12 @@ TEST(DaemonService, ProcessJobMergesAndFitsAndPreviewsServeJpeg) {
                                           {"dry_run", true}, {"process", false}});
   ASSERT_TRUE(cap.ok());
   EXPECT_EQ(d.WaitJob((*cap)["id"].get<int>())["state"], "done");
-  EXPECT_FALSE(fs::exists(a / "model" / "model.exr"));
+  EXPECT_FALSE(testing::SessionHasModel(a));
   auto proc = d.client->Post("/api/jobs", {{"kind", "process"}, {"session", a.string()}});
   ASSERT_TRUE(proc.ok());
   nlohmann::json p = d.WaitJob((*proc)["id"].get<int>());
   EXPECT_EQ(p["state"], "done") << p.dump();
-  EXPECT_TRUE(fs::exists(a / "model" / "model.exr"));
+  EXPECT_TRUE(testing::SessionHasModel(a));
   nlohmann::json s = d.Get();
   EXPECT_EQ(s["model"]["radiance_maps"], 8);
   EXPECT_EQ(s["model"]["phase"], "fitted");

@@ -41,7 +41,9 @@ void ExpectSameModel(const fs::path& a_path, const fs::path& b_path) {
 
 TEST(ModelAtLastFrame, TheCapturedModelComesFromMemoryAndEqualsTheModelFromTheFiles) {
   const std::string dir = testing::FreshTempDir("model_at_last_frame");
-  const std::string cfg = testing::WriteSimConfig(dir, "[sim]\nwidth = 96\nheight = 72\n");
+  // The harmonic family's model (the PCA family's from memory and from files: pca_session_test).
+  const std::string cfg = testing::WriteSimConfig(
+      dir, "[sim]\nwidth = 96\nheight = 72\n[process]\nmodel_family = \"harmonic\"\n");
   const fs::path s = fs::path(dir) / "S";
   auto r = RunRig("capture --config " + cfg + " --out " + s.string() + " --dry-run --no-progress");
   ASSERT_EQ(r.status, 0) << r.output;
@@ -77,7 +79,8 @@ TEST(ModelAtLastFrame, TheCapturedModelComesFromMemoryAndEqualsTheModelFromTheFi
 TEST(ModelAtLastFrame, AReferencePatchLeavesTheGramToTheFitAndTheSameModel) {
   const std::string dir = testing::FreshTempDir("model_at_last_frame_patch");
   const std::string cfg = testing::WriteSimConfig(
-      dir, "[sim]\nwidth = 96\nheight = 72\n\n[process]\nreference_patch_px = [40, 30, 8, 6]\n");
+      dir, "[sim]\nwidth = 96\nheight = 72\n\n[process]\nreference_patch_px = [40, 30, 8, 6]\n"
+           "model_family = \"harmonic\"\n");
   const fs::path s = fs::path(dir) / "S";
   auto r = RunRig("capture --config " + cfg + " --out " + s.string() + " --dry-run --no-progress");
   ASSERT_EQ(r.status, 0) << r.output;

@@ -15,6 +15,7 @@
 
 #include "process/io/exr_io.h"
 #include "tests/support/run_rig.h"
+#include "tests/support/session_model.h"
 
 namespace rig {
 namespace {
@@ -97,7 +98,7 @@ TEST_F(ProcessCommand, MergesEveryPoseThroughOneStoredResponseAndFitsTheModel) {
   EXPECT_THAT(r.output, HasSubstr("40 merged, 0 up to date, 0 failed"));
   EXPECT_EQ(CountExr(s), 40);
   EXPECT_TRUE(fs::exists(s / "calib" / "response.csv"));
-  EXPECT_TRUE(fs::exists(s / "model" / "model.exr"));
+  EXPECT_TRUE(testing::SessionHasModel(s));
   // Every map names the same response, its pose and its exposures.
   std::smatch m;
   ASSERT_TRUE(std::regex_search(r.output, m, std::regex("response (g-[0-9a-f]+)"))) << r.output;

@@ -19,7 +19,9 @@
 
 #include "capture/session/session_store.h"
 #include "process/io/exr_io.h"
+#include "process/model/any/load_model.h"
 #include "tests/support/run_rig.h"
+#include "tests/support/session_model.h"
 
 namespace rig {
 namespace {
@@ -59,8 +61,10 @@ void ExpectProcessedOnce(const fs::path& s) {
     EXPECT_TRUE(img.ok()) << e.path();
   }
   EXPECT_EQ(maps, 40);
-  EXPECT_TRUE(fs::exists(s / "model" / "model.exr"));
-  EXPECT_TRUE(ReadExr((s / "model" / "model.exr").string()).ok());
+  EXPECT_TRUE(testing::SessionHasModel(s));
+  const fs::path exr = s / "model" / "model.exr";
+  auto model = LoadReflectanceModel((fs::exists(exr) ? exr : s / "model" / "pca").string());
+  EXPECT_TRUE(model.ok()) << model.error().ToString();
   for (const auto& e : fs::recursive_directory_iterator(s)) {
     const std::string name = e.path().filename().string();
     EXPECT_FALSE(name[0] == '.' && name.find(".tmp") != std::string::npos) << "left behind: " << e.path();

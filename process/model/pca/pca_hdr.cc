@@ -16,6 +16,12 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+double SumOf(const std::vector<double>& v) {
+  double s = 0;
+  for (double x : v) s += x;
+  return s;
+}
+
 HdrCodeCurve CurveOf(const PcaHdrCurveCandidate& c, const std::vector<cv::Mat>& radiance,
                      const std::array<double, 3>& lamp, double high) {
   return FitHdrCurveOfRadiance(radiance, lamp, PcaHdrCurveOptions(c, high));
@@ -26,57 +32,6 @@ PcaOptions BaseOptions(const PcaHdrChoiceOptions& o) {
   po.thresholds = kHdrMaskThresholds;
   po.threads = o.threads;
   return po;
-}
-
-// The model's squared error of ρ against the measured ρ at each held-out lamp, as a share of
-// the measured ρ's squares over all of them (the shares sum to the relative error squared).
-// Samples that are not finite in the map (a merged map can hold a few) are left out of both.
-std::vector<double> HeldOutErrors(const ReflectanceModel& m, const std::vector<cv::Mat>& radiance,
-                                  const std::vector<Vec3>& directions, const std::vector<int>& held,
-                                  const std::array<double, 3>& lamp) {
-  std::vector<double> err;
-  double ref = 0;
-  const double inv[3] = {1 / lamp[2], 1 / lamp[1], 1 / lamp[0]};  // B, G, R
-  for (int l : held) {
-    const cv::Mat pred = m.EvaluateRho(directions[l]);
-    const cv::Mat& map = radiance[l];
-    double e = 0;
-    for (int y = 0; y < map.rows; ++y) {
-      const auto* t = map.ptr<cv::Vec3f>(y);
-      const auto* p = pred.ptr<cv::Vec3f>(y);
-      for (int x = 0; x < map.cols; ++x)
-        for (int c = 0; c < 3; ++c) {
-          const double truth = t[x][c] * inv[c];
-          if (!std::isfinite(truth)) continue;
-          const double d = p[x][c] - truth;
-          e += d * d;
-          ref += truth * truth;
-        }
-    }
-    err.push_back(e);
-  }
-  for (double& e : err) e = ref > 0 ? e / ref : 0;
-  return err;
-}
-
-double Sum(const std::vector<double>& v) {
-  double s = 0;
-  for (double x : v) s += x;
-  return s;
-}
-
-// The excess of a's squared relative error over b's, summed over the lamps, and its standard
-// error: the lamps held out taken as a sample of the lamps, the excess a sum of n paired terms.
-void PairedExcess(const std::vector<double>& a, const std::vector<double>& b, double* excess,
-                  double* se) {
-  const size_t n = std::min(a.size(), b.size());
-  double mean = 0;
-  for (size_t i = 0; i < n; ++i) mean += a[i] - b[i];
-  *excess = mean;
-  mean /= std::max<size_t>(1, n);
-  double ss = 0;
-  for (size_t i = 0; i < n; ++i) ss += (a[i] - b[i] - mean) * (a[i] - b[i] - mean);
-  *se = n > 1 ? std::sqrt(static_cast<double>(n) * ss / static_cast<double>(n - 1)) : 0;
 }
 
 // Every candidate of one curve, fitted to the fold's maps and scored at the held-out lamps.
@@ -118,7 +73,7 @@ Status ScoreCurve(const PcaHdrCurveCandidate& cc, const std::vector<cv::Mat>& ra
         r.quality = q;
         r.bytes_per_pixel = static_cast<double>(bytes) / pixels;
         r.per_lamp = HeldOutErrors(*WrapPca(std::move(back)), radiance, directions, held, lamp);
-        r.held_out_relative = std::sqrt(Sum(r.per_lamp));
+        r.held_out_relative = std::sqrt(SumOf(r.per_lamp));
         r.within_budget = r.bytes_per_pixel <= o.max_bytes_per_pixel;
         out->push_back(r);
       }
@@ -154,6 +109,58 @@ Status ScoreCurves(const std::vector<cv::Mat>& radiance, const std::vector<Vec3>
 
 }  // namespace
 
+// The model's squared error of ρ against the measured ρ at each held-out lamp, as a share of
+// the measured ρ's squares over all of them (the shares sum to the relative error squared).
+// Samples that are not finite in the map (a merged map can hold a few) are left out of both.
+std::vector<double> HeldOutErrors(const ReflectanceModel& m, const std::vector<cv::Mat>& radiance,
+                                  const std::vector<Vec3>& directions, const std::vector<int>& held,
+                                  const std::array<double, 3>& lamp) {
+  std::vector<double> err;
+  double ref = 0;
+  const double inv[3] = {1 / lamp[2], 1 / lamp[1], 1 / lamp[0]};  // B, G, R
+  for (int l : held) {
+    const cv::Mat pred = m.EvaluateRho(directions[l]);
+    const cv::Mat& map = radiance[l];
+    double e = 0;
+    for (int y = 0; y < map.rows; ++y) {
+      const auto* t = map.ptr<cv::Vec3f>(y);
+      const auto* p = pred.ptr<cv::Vec3f>(y);
+      for (int x = 0; x < map.cols; ++x)
+        for (int c = 0; c < 3; ++c) {
+          const double truth = t[x][c] * inv[c];
+          if (!std::isfinite(truth)) continue;
+          const double d = p[x][c] - truth;
+          e += d * d;
+          ref += truth * truth;
+        }
+    }
+    err.push_back(e);
+  }
+  for (double& e : err) e = ref > 0 ? e / ref : 0;
+  return err;
+}
+
+// The excess of a's squared relative error over b's, summed over the lamps, and its standard
+// error: the lamps held out taken as a sample of the lamps, the excess a sum of n paired terms.
+void PairedExcess(const std::vector<double>& a, const std::vector<double>& b, double* excess,
+                  double* se) {
+  const size_t n = std::min(a.size(), b.size());
+  double mean = 0;
+  for (size_t i = 0; i < n; ++i) mean += a[i] - b[i];
+  *excess = mean;
+  mean /= std::max<size_t>(1, n);
+  double ss = 0;
+  for (size_t i = 0; i < n; ++i) ss += (a[i] - b[i] - mean) * (a[i] - b[i] - mean);
+  *se = n > 1 ? std::sqrt(static_cast<double>(n) * ss / static_cast<double>(n - 1)) : 0;
+}
+
+std::vector<int> HeldOutLamps(size_t lamps, int every) {
+  std::vector<int> held;
+  for (size_t l = 0; l < lamps; l += static_cast<size_t>(std::max(2, every)))
+    held.push_back(static_cast<int>(l));
+  return held;
+}
+
 HdrCurveOptions PcaHdrCurveOptions(const PcaHdrCurveCandidate& c, double high) {
   HdrCurveOptions o;
   o.curve = c.curve;
@@ -186,9 +193,7 @@ Result<PcaHdrFit> ChoosePcaHdr(const std::vector<cv::Mat>& radiance,
   if (o.curves.empty() || o.components.empty() || o.resolutions.empty() || o.qualities.empty()) {
     return MakeError(ErrorCode::kInvalidInput, "pca", "no candidates");
   }
-  std::vector<int> held;
-  for (size_t l = 0; l < radiance.size(); l += static_cast<size_t>(std::max(2, o.validation_every)))
-    held.push_back(static_cast<int>(l));
+  const std::vector<int> held = HeldOutLamps(radiance.size(), o.validation_every);
   PcaHdrFit fit;
   RIG_TRY(ScoreCurves(radiance, directions, held, lamp, o, &fit.candidates));
   for (size_t i = 0; i < fit.candidates.size(); ++i) {
@@ -230,7 +235,7 @@ Result<PcaHdrFit> ChoosePcaHdr(const std::vector<cv::Mat>& radiance,
     fit.reason = fmt::format("no candidate fits {:.1f} B/px at {}x{} (the grid is stored whatever the "
                              "image's size), so the smallest: ", o.max_bytes_per_pixel,
                              radiance[0].cols, radiance[0].rows) + fit.reason;
-    Log("process")->warn("pca of radiance maps: {}", fit.reason);
+    if (o.warn_over_budget) Log("process")->warn("pca of radiance maps: {}", fit.reason);
   }
   fit.time_s = std::chrono::duration<double>(Clock::now() - t0).count();
   return fit;

@@ -40,6 +40,7 @@ struct PcaHdrChoiceOptions {
   int validation_every = 6;  // every n-th lamp held out
   double high = 0.9999;      // the curve's max at this quantile of ρ
   int threads = 2;           // the curves' candidates are scored this many at once
+  bool warn_over_budget = true;  // log a warning when no candidate fits the budget
 };
 
 struct PcaHdrCandidate {
@@ -83,6 +84,19 @@ PcaOptions PcaHdrModelOptions(const PcaHdrChoiceOptions& options, int components
                               int quality);
 // The curve options of a candidate curve.
 HdrCurveOptions PcaHdrCurveOptions(const PcaHdrCurveCandidate& curve, double high);
+
+// The lamps a choice holds out: every n-th from the first (n = max(2, every)).
+std::vector<int> HeldOutLamps(size_t lamps, int every);
+// A model's squared error of ρ against the measured ρ (radiance ÷ lamp) at each held-out lamp,
+// as a share of the measured ρ's squares over all of them: the shares sum to the relative RMS
+// error squared. The maps' non-finite samples are left out of both.
+std::vector<double> HeldOutErrors(const ReflectanceModel& m, const std::vector<cv::Mat>& radiance,
+                                  const std::vector<Vec3>& directions, const std::vector<int>& held,
+                                  const std::array<double, 3>& lamp);
+// The excess of a's squared relative error over b's (the sum of the paired per-lamp shares)
+// and its standard error, the lamps held out taken as a sample of the lamps.
+void PairedExcess(const std::vector<double>& a, const std::vector<double>& b, double* excess,
+                  double* se);
 
 // Markdown table of the candidates, the choice marked.
 std::string PcaHdrChoiceMarkdown(const PcaHdrFit& fit);

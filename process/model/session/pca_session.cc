@@ -9,6 +9,7 @@
 
 #include <fmt/format.h>
 
+#include "config/console.h"
 #include "config/log.h"
 
 namespace rig {
@@ -147,11 +148,20 @@ cv::Rect PcaHdrChoiceRegion(int width, int height) {
   return {(width - w) / 2, (height - h) / 2, w, h};
 }
 
+Result<std::vector<cv::Mat>> ReadChoiceRegion(MapBands& maps) {
+  const cv::Rect r = PcaHdrChoiceRegion(maps.width(), maps.height());
+  std::vector<cv::Mat> rows, region;
+  RIG_TRY(ReadRows(maps, r.y, r.y + r.height, &rows));
+  for (auto& m : rows) region.push_back(m(cv::Rect(r.x, 0, r.width, r.height)).clone());
+  return region;
+}
+
 Result<PcaSessionFit> FitPcaHdrFromBands(MapBands& maps, const std::vector<Vec3>& directions,
                                          const std::array<double, 3>& lamp,
                                          const LightFrameConfig& light_frame,
                                          const PcaHdrChoiceOptions& o,
-                                         const std::string& out_folder, int band_rows) {
+                                         const std::string& out_folder, int band_rows,
+                                         const PcaHdrFit* choice) {
   const auto t0 = Clock::now();
   band_rows = std::max(1, band_rows);
   if (maps.count() != directions.size()) {
@@ -162,15 +172,19 @@ Result<PcaSessionFit> FitPcaHdrFromBands(MapBands& maps, const std::vector<Vec3>
   out.width = maps.width();
   out.height = maps.height();
   const size_t pixels = static_cast<size_t>(out.width) * out.height;
+  // The bar counts rows: the choice's region once, every row for the sample, every row for the
+  // planes.
+  const cv::Rect choice_rect = PcaHdrChoiceRegion(out.width, out.height);
+  ProgressTask task("fitting the model", (choice ? 0 : choice_rect.height) + 2 * int64_t{out.height});
   // 1. The choice, on the central region's maps.
   out.choice_region = PcaHdrChoiceRegion(out.width, out.height);
   const cv::Rect& r = out.choice_region;
-  {
-    std::vector<cv::Mat> rows, region;
-    RIG_TRY(ReadRows(maps, r.y, r.y + r.height, &rows));
-    for (auto& m : rows) region.push_back(m(cv::Rect(r.x, 0, r.width, r.height)).clone());
-    rows.clear();
+  if (choice) {
+    out.choice = *choice;
+  } else {
+    RIG_ASSIGN_OR_RETURN(std::vector<cv::Mat> region, ReadChoiceRegion(maps));
     RIG_ASSIGN_OR_RETURN(out.choice, ChoosePcaHdr(region, directions, lamp, o));
+    task.Advance(r.height, "the choice");
   }
   out.choice_s = Since(t0);
   // 2. The curve from every map, the components from the sampled pixels.
@@ -180,6 +194,7 @@ Result<PcaSessionFit> FitPcaHdrFromBands(MapBands& maps, const std::vector<Vec3>
   HdrCurveSampler sampler(maps.count(), pixels, lamp);
   std::vector<float> sampled_radiance;
   RIG_TRY(GatherSample(maps, subset, band_rows, o.threads, lamp, &sampler, &sampled_radiance));
+  task.Advance(out.height, "the sample");
   out.curve = sampler.Curve(PcaHdrCurveOptions(out.choice.curve, o.high));
   const LightSamples sampled = SampledCodes(sampled_radiance, subset.size(), directions, lamp, out.curve);
   sampled_radiance = {};
@@ -200,7 +215,9 @@ Result<PcaSessionFit> FitPcaHdrFromBands(MapBands& maps, const std::vector<Vec3>
                           out.width,  out.height, band_rows, threads, "pca of radiance maps"};
   BandCoder coder(maps, directions, lamp, out.curve, threads);
   RIG_TRY(WritePcaPlanes(pass, [&](int y0, int rows, std::vector<uint8_t>* values) -> Status {
-    return coder.Codes(y0, rows, values);
+    RIG_TRY(coder.Codes(y0, rows, values));
+    task.Advance(rows, "the planes");
+    return Ok();
   }, out_folder, &out.planes));
   RIG_TRY(WritePcaInfo(out_folder, out.width, out.height, basis, quant, directions, po.jpeg_quality,
                        "", PcaHdrValues{out.curve, lamp, light_frame}));

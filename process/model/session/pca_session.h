@@ -33,14 +33,19 @@ struct PcaSessionFit {
 inline constexpr int kPcaHdrChoiceSide = 512;
 cv::Rect PcaHdrChoiceRegion(int width, int height);
 
+// The choice region of every map (CV_32FC3 BGR), read from `maps`.
+Result<std::vector<cv::Mat>> ReadChoiceRegion(MapBands& maps);
+
 // `maps`: the session's radiance maps (CV_32FC3 BGR), one per direction; ρ = radiance ÷ lamp.
-// Three passes over bands of `band_rows` rows: the choice region; the curve's sample and the
+// `choice`: the choice already made on the choice region (ChoosePcaHdr with `options`), or
+// null to make it here. Three passes over bands of `band_rows` rows: the choice region; the curve's sample and the
 // components' sampled pixels; every pixel's codes, solved and written into the plane files of
 // `out_folder` (created; files replaced), then info.json with the HDR values.
 Result<PcaSessionFit> FitPcaHdrFromBands(MapBands& maps, const std::vector<Vec3>& directions,
                                          const std::array<double, 3>& lamp_radiance_rgb,
                                          const LightFrameConfig& light_frame,
                                          const PcaHdrChoiceOptions& options,
-                                         const std::string& out_folder, int band_rows = 32);
+                                         const std::string& out_folder, int band_rows = 32,
+                                         const PcaHdrFit* choice = nullptr);
 
 }  // namespace rig
