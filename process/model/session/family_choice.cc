@@ -14,7 +14,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+double ChoiceSeconds(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 double RelativeOf(const std::vector<double>& per_lamp) {
   double s = 0;
@@ -45,7 +45,7 @@ Result<FamilyCandidate> ScoreHarmonic(const std::vector<cv::Mat>& radiance,
   c.bytes_per_pixel = static_cast<double>(terms) * 3 * value_bytes;
   c.per_lamp = HeldOutErrors(*WrapHarmonic(std::move(fit.model)), radiance, directions, held, lamp);
   c.held_out_relative = RelativeOf(c.per_lamp);
-  c.fit_s = Since(t0);
+  c.fit_s = ChoiceSeconds(t0);
   return c;
 }
 
@@ -69,7 +69,7 @@ Result<SessionFamilyChoice> ChooseSessionFamily(const std::vector<cv::Mat>& radi
   out.pca_candidate.bytes_per_pixel = p.bytes_per_pixel;
   out.pca_candidate.per_lamp = p.per_lamp;
   out.pca_candidate.held_out_relative = p.held_out_relative;
-  out.pca_candidate.fit_s = Since(tp);
+  out.pca_candidate.fit_s = ChoiceSeconds(tp);
   RIG_ASSIGN_OR_RETURN(out.harmonic_candidate,
                        ScoreHarmonic(radiance, directions, held, lamp, harmonic, value_bytes));
   FamilyCandidate& a = out.pca_candidate;
@@ -94,7 +94,7 @@ Result<SessionFamilyChoice> ChooseSessionFamily(const std::vector<cv::Mat>& radi
                                                pca.noise_z))
           : fmt::format("the larger: the smaller's excess error is {:.1f} standard errors",
                         smaller.excess_se > 0 ? smaller.excess / smaller.excess_se : INFINITY));
-  out.time_s = Since(t0);
+  out.time_s = ChoiceSeconds(t0);
   return out;
 }
 
