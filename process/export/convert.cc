@@ -118,6 +118,8 @@ Result<RelightCoefficients> Refit(const ReflectanceModel& m, RelightTarget t,
   return c;
 }
 
+}  // namespace
+
 // A luminance PTM times a per-pixel RGB albedo from an rgb PTM, by least squares over
 // `lights`: luminance a = the mean of the channels' polynomials; albedo ρ_c = aᵀGc_c / aᵀGa
 // (G = WᵀW), scaled so the largest channel is 255.
@@ -147,6 +149,8 @@ RelightCoefficients FactoriseLrgb(const RelightCoefficients& rgb, const std::vec
     }
   return out;
 }
+
+namespace {
 
 double PsnrAt(const ReflectanceModel& source, const RelightCoefficients& c,
               const std::vector<Vec3>& lights, double gain) {

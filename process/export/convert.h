@@ -44,6 +44,11 @@ Result<Conversion> ConvertToRelight(const Model& model, const RelightTarget& tar
 Result<Conversion> ConvertToRelight(const ReflectanceModel& model, const RelightTarget& target,
                                     std::vector<Vec3> lights = {});
 
+// A luminance PTM times a per-pixel RGB albedo from an rgb PTM, by least squares over
+// `lights`: luminance a = the mean of the channels' polynomials; albedo ρ_c = aᵀGc_c / aᵀGa
+// (G = WᵀW), scaled so the largest channel is 255.
+RelightCoefficients FactoriseLrgb(const RelightCoefficients& rgb, const std::vector<Vec3>& lights);
+
 // 8-bit sRGB PSNR of two models' renders over directions (both clamped to 0..255), a's ρ
 // scaled by gain_a first (Conversion::gain).
 double RenderPsnrDb(const ReflectanceModel& a, const ReflectanceModel& b,

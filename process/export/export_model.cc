@@ -122,7 +122,7 @@ Result<ExportSource> ConvertForExport(const std::string& path, const ExportReque
     // model holds reflectance of radiance maps through an HDR curve (info.json's rig.values),
     // which relight's readers do not know (they would show the codes as sRGB photographs):
     // it is refitted into 8-bit display values, as a harmonic session's model is.
-    if (request.format == "relight" && s.model->family() == "pca-bilinear" && request.basis.empty() &&
+    if (request.format == "relight" && s.model->family().rfind("pca-", 0) == 0 && request.basis.empty() &&
         s.model->encoding() != ValueEncoding::kLinear) {
       s.as_stored = true;
       return s;

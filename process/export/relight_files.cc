@@ -20,6 +20,7 @@
 
 #include "process/io/jpeg_io.h"
 #include "process/io/model_limits.h"
+#include "process/model/pca/pca.h"
 
 namespace rig {
 namespace {
@@ -310,9 +311,19 @@ Status WriteRelightWeb(const std::string& folder, const RelightCoefficients& c,
 Result<std::vector<std::string>> DeclaredWebFiles(const std::string& folder) {
   const std::string path = (fs::path(folder) / "info.json").string();
   RIG_ASSIGN_OR_RETURN(nlohmann::json info, ReadJsonObjectFile(path));
-  if (!info.contains("nplanes") || !info["nplanes"].is_number_integer())
+  int64_t nplanes = 0;
+  if (info.contains("yccplanes") && info["yccplanes"].is_array()) {
+    // mycc: [ny, nc, nc] instead of nplanes
+    for (const auto& v : info["yccplanes"]) {
+      if (!v.is_number_integer() || v.get<int64_t>() < 0 || v.get<int64_t>() > 256)
+        return MakeError(ErrorCode::kInvalidInput, path, "yccplanes: {} is not an integer in 0..256", v.dump());
+      nplanes += v.get<int64_t>();
+    }
+  } else if (!info.contains("nplanes") || !info["nplanes"].is_number_integer()) {
     return MakeError(ErrorCode::kInvalidInput, path, "nplanes: missing or not an integer");
-  const int64_t nplanes = info["nplanes"].get<int64_t>();
+  } else {
+    nplanes = info["nplanes"].get<int64_t>();
+  }
   if (nplanes < 1 || nplanes > 256)
     return MakeError(ErrorCode::kInvalidInput, path, "nplanes: {} is outside 1..256", nplanes);
   std::vector<std::string> names = {"info.json"};
@@ -395,7 +406,7 @@ Result<RelightCoefficients> ReadRelightWebImpl(const std::string& folder, bool r
     }
   } else {
     return MakeError(ErrorCode::kInvalidInput, path,
-                     "type: '{}' is not read here (read: ptm rgb/lrgb, hsh rgb, sh rgb, bilinear mrgb)", type);
+                     "type: '{}' is not read here (read: {})", type, kRelightTypesRead);
   }
   c.terms = c.lrgb ? 6 : static_cast<int>(nplanes / 3);
   if (info.contains("format") && info["format"] != "jpg") {
@@ -484,6 +495,10 @@ Status WritePtm(const std::string& path, const RelightCoefficients& c) {
   for (int f = 0; f < 6; ++f) {
     double lo, hi;
     Range(c.planes[kPtmFileToRelight[f]], -1, &lo, &hi);
+    // The PTM specification's bias is a byte (coefficient = (byte − bias)·scale), and strict
+    // readers refuse one outside 0..255: the range always holds 0, so the bias lies in 0..254.
+    lo = std::min(lo, 0.0);
+    hi = std::max(hi, 0.0);
     const double range = std::max(hi - lo, 1e-3);
     // 254 steps and a bias rounded up: every coefficient lands in [0, 255) before rounding,
     // whatever the integer bias does to the offset.

@@ -131,8 +131,9 @@ Result<ViewReport> WriteViewFolder(const ViewRequest& request) {
   const bool wants_tiles_on = a.tiles == "on", wants_tiles_auto = a.tiles == "auto";
   std::string describe;
   int width = 0, height = 0;
-  if (web_type == "ptm" || web_type == "hsh" || web_type == "bilinear") {
-    if (web_type != "bilinear") {
+  const bool pca_type = web_type == "bilinear" || web_type == "rbf";  // mrgb or mycc
+  if (web_type == "ptm" || web_type == "hsh" || pca_type) {
+    if (!pca_type) {
       // info.json and the plane headers first; a model that gets tiles is decoded by the tiler
       // (which refuses a damaged plane, naming it), not held whole as float planes here.
       auto info = ReadRelightWebInfo(path);

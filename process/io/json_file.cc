@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <vector>
 
@@ -53,6 +54,12 @@ Result<int> JsonIntegerIn(const nlohmann::json& v, int lo, int hi, const std::st
     return MakeError(ErrorCode::kInvalidInput, path, "{}: {} is not an integer in {}..{}", field,
                      v.dump(), lo, hi);
   return static_cast<int>(v.get<int64_t>());
+}
+
+Result<double> JsonNumber(const nlohmann::json& v, const std::string& path, const std::string& field) {
+  if (!v.is_number() || !std::isfinite(v.get<double>()))
+    return MakeError(ErrorCode::kInvalidInput, path, "{}: {} is not a finite number", field, v.dump());
+  return v.get<double>();
 }
 
 }  // namespace rig

@@ -24,5 +24,7 @@ Result<nlohmann::json> ReadJsonObjectFile(const std::string& path,
 // taken through this; the error names the file and the field.
 Result<int> JsonIntegerIn(const nlohmann::json& v, int lo, int hi, const std::string& path,
                           const std::string& field);
+// A JSON value that must be a finite number; the error names the file and the field.
+Result<double> JsonNumber(const nlohmann::json& v, const std::string& path, const std::string& field);
 
 }  // namespace rig

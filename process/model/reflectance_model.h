@@ -33,7 +33,7 @@ class ReflectanceModel {
  public:
   virtual ~ReflectanceModel() = default;
 
-  virtual std::string family() const = 0;    // "sh", "hsh", "ptm", "pca-bilinear", "neural"
+  virtual std::string family() const = 0;    // "sh", "hsh", "ptm", "pca-bilinear" (pca-rbf, -ybilinear, -yrbf read), "neural"
   virtual std::string Describe() const = 0;  // one line: family, size, how it was fitted
   virtual int width() const = 0;
   virtual int height() const = 0;

@@ -130,9 +130,9 @@ int RunExport(int argc, char** argv) {
   if (exported->as_stored) {
     // Its files, byte for byte (saving again would compress the planes a second time).
     if (Status st = CopyDeclaredWebFiles(path, a.out); !st.ok()) return ReportError("export", st.error());
-    std::printf("rig export: wrote %s (relight web format, bilinear mrgb, as the model is "
+    std::printf("rig export: wrote %s (relight web format, %s, as the model is "
                 "stored: nothing refitted, nothing lost)\n  from %s: %s\n",
-                a.out.c_str(), path.c_str(), model->Describe().c_str());
+                a.out.c_str(), model->family().substr(4).c_str(), path.c_str(), model->Describe().c_str());
     return WriteTilesIfWanted(a, model->width(), model->height());
   }
   const Conversion* conversion = &exported->conversion;

@@ -1,14 +1,19 @@
 // rig fit: fits a reflectance model to a multi-light capture (--lp: by default the most
 // accurate model per byte, its size chosen from the data) or to radiance maps with known lamp
 // angles (--list), or reports leave-one-out error of every family (--loo-report).
+#include <cctype>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+
+#include <fmt/format.h>
 
 #include "config/config.h"
 #include "config/atomic_file.h"
 #include "config/log.h"
 #include "process/evaluate/rti_loo.h"
+#include "process/export/relight_files.h"
+#include "process/export/relight_fit.h"
 #include "process/model/any/load_model.h"
 #include "process/model/light_direction.h"
 #include "process/model/light_samples.h"
@@ -23,9 +28,9 @@ namespace {
 
 struct FitArgs {
   std::string list, lp, out, report, loo_report, config_path, basis, order_text, method, space,
-      pixel_type, log_level, mask = "hinge";
+      pixel_type, log_level, mask = "hinge", ptm_variant = "rgb";
   int downsample = 1, max_order = -1, components = 0, grid = 0, quality = 0, loo_every = 1,
-      impute = 0;
+      impute = 0, hsh_terms = 9, held_out_every = 6;
   double max_bpp = 3.4;
   long stream_mb = -1;  // -1: the default of the path (--list 1024, --lp 256); 0: always
   bool no_neural = false, linear = false;
@@ -39,7 +44,16 @@ void AddOptions(CLI::App& app, FitArgs* a) {
                             "RTI light file: a count, then '<image> <x> <y> <z>' per line");
   list->excludes(lp);
   app.add_option("--out", a->out,
-                 "the model: a folder for pca (relight's web format), an EXR for sh/hsh/ptm");
+                 "the model: a folder for pca (relight's web format), an EXR for sh/hsh/ptm; "
+                 "with --lp, a .ptm (PTM, 6 terms) or .rti (HSH) file fitted straight from the "
+                 "photographs for RTIViewer");
+  app.add_option("--ptm-variant", a->ptm_variant, "--out X.ptm: rgb (default) or lrgb");
+  app.add_option("--hsh-terms", a->hsh_terms, "--out X.rti: 9 (default) or 4 HSH terms")
+      ->check(CLI::IsMember({4, 9}));
+  app.add_option("--held-out-every", a->held_out_every,
+                 "--out X.ptm|X.rti: hold out every n-th image, refit without them and print the "
+                 "error there of the file as written (default 6; 0: none)")
+      ->check(CLI::Range(0, 1000));
   app.add_option("--config", a->config_path, "configuration (lamp radiance, light frame, [process])");
   app.add_option("--basis", a->basis,
                  "--lp: auto (default), pca, sh, hsh, ptm; --list: sh, hsh, ptm (default: config)");
@@ -161,10 +175,71 @@ int RunLpStreamed(const FitArgs& a, const std::vector<LpEntry>& entries, const R
   return 0;
 }
 
+std::string LowerExtension(const std::string& path) {
+  std::string e = std::filesystem::path(path).extension().string();
+  for (char& ch : e) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  return e;
+}
+
+// --out X.ptm | X.rti: relight's basis fitted straight from the photographs, written for
+// RTIViewer, with the error of the file as written at images held out of its fit.
+int RunLpRelightFile(const FitArgs& a, const RtiCapture& capture) {
+  const bool ptm = LowerExtension(a.out) == ".ptm";
+  RelightTarget t;
+  t.type = ptm ? RelightType::kPtm : RelightType::kHsh;
+  t.terms = ptm ? 6 : a.hsh_terms;
+  t.lrgb = ptm && a.ptm_variant == "lrgb";
+  if (ptm && a.ptm_variant != "rgb" && a.ptm_variant != "lrgb")
+    return ReportError("fit", MakeError(ErrorCode::kInvalidInput, "--ptm-variant", "'{}': rgb or lrgb", a.ptm_variant));
+  RelightFitOptions o;
+  o.every = a.held_out_every;
+  o.format = ptm ? "ptm" : "rti";
+  std::printf("rig fit: %s: %s straight from %d images %dx%d (least squares in code values, "
+              "masked samples left out)%s...\n",
+              a.lp.c_str(), ptm ? (t.lrgb ? "PTM lrgb, 6 terms" : "PTM rgb, 6 terms per channel")
+                                : (t.terms == 9 ? "HSH, 9 terms per channel" : "HSH, 4 terms per channel"),
+              capture.samples.lights(), capture.samples.width, capture.samples.height,
+              o.every > 0 ? fmt::format("; then again without every {}th image, for its error", o.every).c_str() : "");
+  std::fflush(stdout);
+  auto fit = FitRelightToSamples(capture.samples, t, o);
+  if (!fit.ok()) return ReportError("fit", fit.error().Within(a.lp));
+  const Status saved = ptm ? WritePtm(a.out, fit->coefficients) : WriteRti(a.out, fit->coefficients);
+  if (!saved.ok()) return ReportError("fit", saved.error());
+  const double bpp = static_cast<double>(ModelBytesOnDisk(a.out)) / static_cast<double>(capture.samples.pixels());
+  const std::string held =
+      fit->held_out > 0
+          ? fmt::format("held out {} images (every {}th), refitted without them and written: {:.2f} dB "
+                        "at them", fit->held_out, o.every, fit->held_out_psnr_db)
+          : std::string("no images held out");
+  if (!a.report.empty()) {
+    const std::string md = fmt::format(
+        "# {} of {}\n\n{} images {}x{}; {}, fitted by least squares in the photographs' code values, "
+        "masked samples (clipped, black) left out: {} pixels solved around them.\n\n"
+        "- at its own images: {:.2f} dB (8-bit PSNR, unquantised)\n- {}\n- {:.2f} B/px\n",
+        a.out, a.lp, capture.samples.lights(), capture.samples.width, capture.samples.height,
+        fit->coefficients.Summary(), fit->refitted_pixels, fit->fitted_psnr_db, held, bpp);
+    if (Status st = WriteFileAtomic(a.report, md); !st.ok()) return ReportError("fit", st.error());
+  }
+  std::printf("rig fit: wrote %s (%.2f B/px): %s; %s; at its own images %.2f dB; masked %.1f%% of "
+              "samples; load %.2f s, fit %.2f s, held-out fit %.2f s\n",
+              a.out.c_str(), bpp, fit->coefficients.Summary().c_str(), held.c_str(),
+              fit->fitted_psnr_db, 100 * capture.masked_fraction, capture.load_time_s, fit->fit_s,
+              fit->held_out_s);
+  return 0;
+}
+
 int RunLp(FitArgs a, const Config& config) {
+  // .ptm/.rti: relight's basis from the photographs, in memory.
+  const std::string out_ext = LowerExtension(a.out);
+  const bool relight_file = out_ext == ".ptm" || out_ext == ".rti";
+  if (relight_file && !a.basis.empty() && a.basis != (out_ext == ".ptm" ? "ptm" : "hsh")) {
+    return ReportError("fit", MakeError(ErrorCode::kInvalidInput, "--basis",
+                                        "'{}' with --out {}: a .ptm holds a PTM, a .rti an HSH",
+                                        a.basis, a.out));
+  }
   // Above the bound, auto/pca stream; --loo-report refits in memory and is refused.
   const std::string family = a.basis.empty() ? "auto" : a.basis;
-  const bool folder_family = family == "auto" || family == "pca";
+  const bool folder_family = !relight_file && (family == "auto" || family == "pca");
   std::vector<LpEntry> entries;
   uint64_t sample_bytes = 0;
   {
@@ -225,6 +300,7 @@ int RunLp(FitArgs a, const Config& config) {
     std::printf("rig fit: near lamp %s\n", near_note.c_str());
     std::fflush(stdout);
   }
+  if (relight_file && a.loo_report.empty()) return RunLpRelightFile(a, *capture);
   RtiFitRequest req;
   req.family = a.basis.empty() ? "auto" : a.basis;
   req.near_lamp = near_note;
@@ -250,6 +326,7 @@ int RunLp(FitArgs a, const Config& config) {
     if (!rows.ok()) return ReportError("fit", rows.error());
     std::printf("rig fit: wrote %s and its charts beside it\n", a.loo_report.c_str());
     if (a.out.empty()) return 0;
+    if (relight_file) return RunLpRelightFile(a, *capture);
   }
   ProcessConfig pc = config.process;
   if (a.space.empty()) pc.fit_space = "srgb";  // 8-bit photographs: fitted as they are encoded

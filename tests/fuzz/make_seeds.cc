@@ -7,6 +7,7 @@
 #include <fstream>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "process/export/convert.h"
@@ -186,6 +187,37 @@ int main(int argc, char** argv) {
   const fs::path pca_folder = scratch / "pca";
   Check(pca->Save(pca_folder.string()), "pca");
   WriteFile(out / "relight/pca.txt", Pack(pca_folder));
+  // relight's own PCA types, which rig reads but does not fit: rbf (relight's default) and the
+  // mycc forms yrbf and ybilinear, 8x6, one plane file, four nodes (four lights, or a 2x2 grid).
+  auto relight_pca = [&](const char* name, bool rbf, bool ycc) {
+    const fs::path folder = scratch / "web" / name;
+    fs::create_directories(folder);
+    const int k = 3, nodes = 4;
+    nlohmann::ordered_json info = {{"width", 8}, {"height", 6}, {"format", "jpg"},
+                                   {"type", rbf ? "rbf" : "bilinear"}};
+    if (!rbf) info["resolution"] = 2;
+    info["colorspace"] = ycc ? "mycc" : "mrgb";
+    if (rbf) info["sigma"] = 0.125;
+    info["lights"] = {0.5, 0.0, 0.866, -0.5, 0.0, 0.866, 0.0, 0.5, 0.866, 0.0, -0.5, 0.866};
+    if (ycc)
+      info["yccplanes"] = {1, 1, 1};
+    else
+      info["nplanes"] = k;
+    info["quality"] = 95;
+    std::vector<int> basis;
+    for (int i = 0; i < (k + 1) * nodes * 3; ++i) basis.push_back(i < nodes * 3 ? 100 + 7 * i : 60 + 11 * i % 130);
+    info["basis"] = basis;
+    info["materials"] = {{{"scale", {0.3, 0.25, 0.2}}, {"bias", {0.5, 0.45, 0.4}}, {"range", {180.0, 200.0, 220.0}}}};
+    std::ofstream(folder / "info.json") << info.dump();
+    cv::Mat rgb(6, 8, CV_8UC3);
+    for (int y = 0; y < 6; ++y)
+      for (int x = 0; x < 8; ++x) rgb.at<cv::Vec3b>(y, x) = cv::Vec3b(20 * x, 30 * y, 100 + x * y);
+    Check(rig::WriteJpeg((folder / "plane_0.jpg").string(), rgb, rig::JpegColor::kRgb, 95), name);
+    WriteFile(out / "relight" / (std::string(name) + ".txt"), Pack(folder));
+  };
+  relight_pca("rbf", true, false);
+  relight_pca("yrbf", true, true);
+  relight_pca("ybilinear", false, true);
   std::printf("seeds written to %s\n", out.c_str());
   return 0;
 }

@@ -1,5 +1,6 @@
 // Fuzzes the readers of model folders (info.json + plane_N.jpg): relight's web format
-// (ReadRelightWeb, types ptm and hsh) and our PCA models (PcaModel::Load), both reached through
+// (ReadRelightWeb, types ptm, hsh and sh) and the PCA types (PcaModel::Load: bilinear and rbf,
+// mrgb and mycc — ours and relight's), both reached through
 // LoadAnyModel as `rig render` and `rig export` reach them. The input is info.json, then each
 // plane after a line "--8<-- plane_N.jpg" (fuzz_support.h SplitParts).
 #include <cstdint>

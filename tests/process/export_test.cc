@@ -297,14 +297,14 @@ TEST(ExportReaders, HandMadeRtiKeepsTermZeroAndReadsTopDown) {
   EXPECT_NEAR(v.at<cv::Vec3f>(3, 3)[2], 100 / std::sqrt(2 * M_PI), 1e-4);
 }
 
-TEST(ExportWriters, PtmBottomUpRowsAndBiasOutsideByteRangeHoldTheCoefficients) {
+TEST(ExportWriters, PtmBottomUpRowsAndBiasesWithinTheByteRangeHoldTheCoefficients) {
   RelightCoefficients c;
   c.type = RelightType::kPtm;
   c.terms = 6;
   c.width = 4;
   c.height = 3;
   for (int j = 0; j < 6; ++j) c.planes.push_back(cv::Mat(3, 4, CV_32FC3, cv::Scalar::all(0)));
-  c.planes[0].at<cv::Vec3f>(0, 0) = cv::Vec3f(300, 310, 320);  // above 255: bias < 0 needed
+  c.planes[0].at<cv::Vec3f>(0, 0) = cv::Vec3f(300, 310, 320);  // above 255, all positive
   c.planes[0].at<cv::Vec3f>(2, 0) = cv::Vec3f(200, 210, 220);  // bottom-left, B G R
   c.planes[3] = cv::Scalar::all(-125);                        // x², all negative
   const std::string p = Temp("bias.ptm");
@@ -313,8 +313,9 @@ TEST(ExportWriters, PtmBottomUpRowsAndBiasOutsideByteRangeHoldTheCoefficients) {
   ASSERT_TRUE(back.ok()) << back.error().ToString();
   for (int j = 0; j < 6; ++j)
     EXPECT_LT(cv::norm(back->planes[j], c.planes[j], cv::NORM_INF), 320.0 / 254 / 2 + 1e-3) << j;
-  // The header's biases hold the coefficients as they are (x²'s is far beyond 255), and the
-  // first pixel of the file is the bottom-left one: its red constant (file coefficient 6) is 200.
+  // The header's biases are bytes (the specification's, which strict readers hold to), even
+  // for a term all positive or all negative, and the first pixel of the file is the bottom-left
+  // one: its red constant (file coefficient 6) is 200.
   std::ifstream f(p, std::ios::binary);
   std::string line, scales, biases;
   for (int i = 0; i < 4; ++i) std::getline(f, line);
@@ -324,7 +325,12 @@ TEST(ExportWriters, PtmBottomUpRowsAndBiasOutsideByteRangeHoldTheCoefficients) {
   std::istringstream ss(scales), bs(biases);
   for (int i = 0; i < 6; ++i) ss >> scale[i];
   for (int i = 0; i < 6; ++i) bs >> bias[i];
-  EXPECT_GT(bias[0], 255);  // x², all -125
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_GE(bias[i], 0) << i;
+    EXPECT_LE(bias[i], 255) << i;
+    EXPECT_EQ(bias[i], std::round(bias[i])) << i;
+  }
+  EXPECT_GE(bias[0], 254);  // x², all -125: the range -125..0, 0 at the top byte
   unsigned char px[6];
   f.read(reinterpret_cast<char*>(px), 6);
   EXPECT_NEAR((px[5] - bias[5]) * scale[5], 220.0, 320.0 / 254);  // R of the bottom-left pixel

@@ -30,6 +30,7 @@
 #include "process/model/light_direction.h"
 #include "process/model/harmonic/model.h"
 #include "process/model/pca/pca.h"
+#include "tests/support/relight_pca_folder.h"
 #include "tests/support/run_rig.h"
 #include "tests/support/browser.h"
 #include "tests/support/synthetic_model.h"
@@ -341,6 +342,22 @@ TEST_F(ViewTest, PtmLrgbAndPcaBilinearMatchRigRender) {
   for (int k = 0; k < 3; ++k)
     EXPECT_NEAR(data.at("default_light")[k].get<double>(), mean[k] / norm, 1e-3) << k;  // info.json rounds
   EXPECT_LT(data.at("default_light")[2].get<double>(), 0.95);  // far from head-on here
+}
+
+// relight's own PCA types (hand-made folders: rbf, its default; ybilinear and yrbf in mycc):
+// copied as they are, and the page draws what `rig render` draws (which is relight's renderer
+// within 1 DN: tests/process/relight_pca_types_test.cc).
+TEST_F(ViewTest, RelightRbfAndMyccFoldersMatchRigRender) {
+  uint32_t seed = 90;
+  for (auto [rbf, ycc] : {std::pair{true, false}, std::pair{false, true}, std::pair{true, true}}) {
+    const std::string type = std::string(ycc ? "y" : "") + (rbf ? "rbf" : "bilinear");
+    const auto f = testing::MakeRelightPcaFolder(dir_ + "/" + type + "-model", rbf, ycc, seed++);
+    const std::string view = dir_ + "/" + type;
+    const auto r = RunRig("view " + f.dir + " --out " + view);
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("copied as it is"));
+    ExpectMatches(view, {{30, 20}, {70, 45}}, 1.0, 3);
+  }
 }
 
 TEST_F(ViewTest, HdrModelUsesWardsCurveOfTheDefaultLight) {

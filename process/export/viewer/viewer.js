@@ -19,13 +19,16 @@
   // ---- The model: how the planes combine -------------------------------------------------
   const W = info.width, H = info.height;
   const type = info.type, colorspace = info.colorspace;
-  const nplanes = info.nplanes;
+  const ycc = colorspace === 'mycc' ? info.yccplanes : null;  // [ny, nc, nc]
+  if (colorspace === 'mycc' && (!Array.isArray(ycc) || ycc.length !== 3)) fail('info.json: mycc needs yccplanes [ny, nc, nc]');
+  const nplanes = ycc ? ycc[0] + ycc[1] + ycc[2] : info.nplanes;
   const nfiles = Math.ceil(nplanes / 3);
   const material = info.materials[0];
   const scale = material.scale, bias = material.bias;
   const lrgb = colorspace === 'lrgb';
-  if (!['ptm', 'hsh', 'sh', 'bilinear'].includes(type)) fail('Type "' + type + '" is not shown here.');
-  if (!['rgb', 'lrgb', 'mrgb'].includes(colorspace)) fail('Colorspace "' + colorspace + '" is not shown here.');
+  if (!['ptm', 'hsh', 'sh', 'bilinear', 'rbf'].includes(type)) fail('Type "' + type + '" is not shown here.');
+  if (!['rgb', 'lrgb', 'mrgb', 'mycc'].includes(colorspace)) fail('Colorspace "' + colorspace + '" is not shown here.');
+  const pca = colorspace === 'mrgb' || colorspace === 'mycc';
   if (nfiles > 15) fail(nplanes + ' planes: at most 45 are shown here.');
   const terms = lrgb ? 6 : (colorspace === 'rgb' ? nplanes / 3 : 0);
 
@@ -64,16 +67,65 @@
         .slice(0, terms);
   }
 
-  // bilinear (octahedral grid) basis of an mrgb model: the (nplanes + 1) x 3 values at d.
+  // The basis of an mrgb/mycc model, held at the nodes of an octahedral grid (bilinear) or at
+  // the fitted lights (rbf): the (nplanes + 1) x 3 values at d.
   let gridValues = null;
-  if (colorspace === 'mrgb') {
-    if (type !== 'bilinear') fail('mrgb of type "' + type + '" is not shown here (bilinear only).');
-    const stored = info.basis, range = material.range, res = info.resolution;
-    if (!stored || !range || stored.length !== (nplanes + 1) * res * res * 3) fail('info.json: basis does not match nplanes and resolution');
+  const rbfLights = [];
+  let nodes = 0;
+  if (pca) {
+    if (type !== 'bilinear' && type !== 'rbf') fail(colorspace + ' of type "' + type + '" is not shown here (bilinear, rbf).');
+    if (type === 'rbf') {
+      const l = info.lights || [];
+      for (let i = 0; i + 2 < l.length; i += 3) rbfLights.push([l[i], l[i + 1], l[i + 2]]);
+      if (!rbfLights.length || !(info.sigma > 0)) fail('info.json: rbf needs lights and sigma');
+      nodes = rbfLights.length;
+    } else {
+      nodes = info.resolution * info.resolution;
+    }
+    const stored = info.basis, range = material.range;
+    if (!stored || !range || stored.length !== (nplanes + 1) * nodes * 3) fail('info.json: basis does not match the planes and the ' + (type === 'rbf' ? 'lights' : 'resolution'));
     gridValues = stored.map((v, i) => {
-      const p = Math.floor(i / (res * res * 3));
+      const p = Math.floor(i / (nodes * 3));
       return p === 0 ? v : (v - 127) / range[p - 1];
     });
+  }
+  // relight's rbf weights (Rti::lightWeightsRbf): exp(-|l - L_i|^2 / sigma^2) normalised, those
+  // at or below 0.001 dropped, normalised again; l's z from its x and y as relight's renderer.
+  function rbfAt(d) {
+    const lx = d[0], ly = d[1], lz = Math.sqrt(Math.max(0, 1 - lx * lx - ly * ly));
+    const radius = 1 / (info.sigma * info.sigma);
+    const w = rbfLights.map((L) => Math.exp(-radius * ((lx - L[0]) ** 2 + (ly - L[1]) ** 2 + (lz - L[2]) ** 2)));
+    const total = w.reduce((a, b) => a + b, 0);
+    const kept = [];
+    let sum = 0;
+    w.forEach((v, i) => { const n = total > 0 ? v / total : 0; if (n > 0.001) { kept.push([i, n]); sum += n; } });
+    const out = new Float64Array((nplanes + 1) * 3);
+    for (let p = 0; p <= nplanes; ++p)
+      for (let c = 0; c < 3; ++c) {
+        let acc = 0;
+        for (const [i, n] of kept) acc += (n / sum) * gridValues[(p * nodes + i) * 3 + c];
+        out[p * 3 + c] = acc;
+      }
+    return out;
+  }
+  // mycc: plane p < 3 nc feeds its own channel p mod 3 of (Y, Co, Cg), a later one Y alone; then
+  // YCoCg -> RGB (relight's Color3::toRgb), folded into the values as it is linear.
+  function yccToRgb(g) {
+    const interleaved = 3 * ycc[1];
+    for (let p = 0; p < nplanes; ++p)
+      for (let c = 0; c < 3; ++c)
+        if (!(p < interleaved ? c === p % 3 : c === 0)) g[(p + 1) * 3 + c] = 0;
+    for (let p = 0; p <= nplanes; ++p) {
+      const y = g[p * 3], co = g[p * 3 + 1], cg = g[p * 3 + 2];
+      g[p * 3] = y + co / 2 - cg / 2;
+      g[p * 3 + 1] = y + cg / 2;
+      g[p * 3 + 2] = y - co / 2 - cg / 2;
+    }
+    return g;
+  }
+  function basisAt(d) {
+    const g = type === 'rbf' ? rbfAt(d) : gridAt(d);
+    return ycc ? yccToRgb(g) : g;
   }
   function gridAt(d) {
     const res = info.resolution;
@@ -101,8 +153,8 @@
     const m = new Float32Array((3 * nfiles + 1) * 4);
     const B = [0, 0, 0];
     const set = (j, row, col, v) => { m[(3 * j + row) * 4 + col] = v; };
-    if (colorspace === 'mrgb') {
-      const g = gridAt(d);
+    if (pca) {
+      const g = basisAt(d);
       for (let k = 0; k < 3; ++k) B[k] = g[k] / 255;
       for (let p = 0; p < nplanes; ++p)
         for (let k = 0; k < 3; ++k) {

@@ -295,15 +295,60 @@ const char* PcaMaskModeName(PcaMaskMode mode) {
   return "?";
 }
 
+namespace {
+
+// Rti::lightWeightsRbf's weights of the lights at a direction (relight's renderer takes the
+// direction's x and y and makes z = √(1 − x² − y²)): w_i = exp(−|l − L_i|²/σ²) normalised to
+// sum 1, those at or below 0.001 dropped and the rest normalised again.
+void RbfWeights(const std::vector<Vec3>& lights, double sigma, const Vec3& direction,
+                std::vector<std::pair<int, double>>* out) {
+  const double n = std::sqrt(direction[0] * direction[0] + direction[1] * direction[1] +
+                             direction[2] * direction[2]);
+  const double lx = n > 0 ? direction[0] / n : 0, ly = n > 0 ? direction[1] / n : 0;
+  const double lz = std::sqrt(std::max(0.0, 1 - lx * lx - ly * ly));
+  const double radius = 1.0 / (sigma * sigma);
+  std::vector<double> w(lights.size());
+  double total = 0;
+  for (size_t i = 0; i < lights.size(); ++i) {
+    const double dx = lx - lights[i][0], dy = ly - lights[i][1], dz = lz - lights[i][2];
+    w[i] = std::exp(-radius * (dx * dx + dy * dy + dz * dz));
+    total += w[i];
+  }
+  out->clear();
+  double kept = 0;
+  for (size_t i = 0; i < lights.size(); ++i) {
+    const double v = total > 0 ? w[i] / total : 0;
+    if (v > 0.001) {
+      out->push_back({static_cast<int>(i), v});
+      kept += v;
+    }
+  }
+  for (auto& e : *out) e.second /= kept;
+}
+
+}  // namespace
+
 void PcaBasis::Evaluate(const Vec3& direction, double* out) const {
+  const size_t n = static_cast<size_t>(nodes());
+  if (rbf()) {
+    std::vector<std::pair<int, double>> w;
+    RbfWeights(rbf_lights, sigma, direction, &w);
+    for (int p = 0; p <= components; ++p) {
+      for (int c = 0; c < 3; ++c) {
+        double v = 0;
+        for (const auto& [i, wi] : w) v += wi * values[(static_cast<size_t>(p) * n + i) * 3 + c];
+        out[p * 3 + c] = v;
+      }
+    }
+    return;
+  }
   int node[4];
   double w[4];
   OctaWeights(direction, resolution, node, w);
-  const int nodes = resolution * resolution;
   for (int p = 0; p <= components; ++p) {
     for (int c = 0; c < 3; ++c) {
       double v = 0;
-      for (int i = 0; i < 4; ++i) v += w[i] * values[(static_cast<size_t>(p) * nodes + node[i]) * 3 + c];
+      for (int i = 0; i < 4; ++i) v += w[i] * values[(static_cast<size_t>(p) * n + node[i]) * 3 + c];
       out[p * 3 + c] = v;
     }
   }
@@ -710,6 +755,24 @@ cv::Mat PcaModel::Render(const Vec3& direction) const {
   const int k = basis_.components;
   std::vector<double> at(static_cast<size_t>(k + 1) * 3);
   basis_.Evaluate(direction, at.data());
+  if (ycc()) {
+    // mycc (Rti::render): plane p < 3·nc feeds only its own channel p mod 3 of (Y, Co, Cg),
+    // a later plane only Y; the sum is then YCoCg → RGB (Color3::toRgb), linear, so it is
+    // folded into the weights: R = Y + Co/2 − Cg/2, G = Y + Cg/2, B = Y − Co/2 − Cg/2.
+    const int interleaved = 3 * ycc_planes_[1];
+    for (int p = 0; p < k; ++p)
+      for (int c = 0; c < 3; ++c) {
+        const bool feeds = p < interleaved ? c == p % 3 : c == 0;
+        if (!feeds) at[(p + 1) * 3 + c] = 0;
+      }
+    for (int p = 0; p <= k; ++p) {
+      double* v = &at[p * 3];
+      const double y = v[0], co = v[1], cg = v[2];
+      v[0] = y + co / 2 - cg / 2;
+      v[1] = y + cg / 2;
+      v[2] = y - co / 2 - cg / 2;
+    }
+  }
   // out_c = B0c + Σ_p (byte_p·scale_p + min_p)·B_pc = base_c + Σ_p byte_p·s_pc
   float base[3], s[64][3];
   for (int c = 0; c < 3; ++c) {
@@ -762,7 +825,11 @@ Status PcaModel::Save(const std::string& folder) const {
                       kPcaPlaneColor, jpeg_quality_));
   }
   return WritePcaInfo(folder, width_, height_, basis_, quant_, lights_, jpeg_quality_, near_lamp_,
-                      hdr_);
+                      hdr_, ycc_planes_);
+}
+
+std::string PcaModel::relight_type() const {
+  return std::string(ycc() ? "y" : "") + (basis_.rbf() ? "rbf" : "bilinear");
 }
 
 namespace {
@@ -820,21 +887,27 @@ Result<PcaHdrValues> HdrValuesFromJson(const nlohmann::json& j, const std::strin
 std::string PcaInfoText(int width, int height, const PcaBasis& basis,
                         const std::vector<PlaneQuantisation>& quant,
                         const std::vector<Vec3>& lights, int jpeg_quality,
-                        const std::string& near_lamp, const std::optional<PcaHdrValues>& hdr) {
+                        const std::string& near_lamp, const std::optional<PcaHdrValues>& hdr,
+                        const std::array<int, 3>& ycc = {0, 0, 0}) {
   const int k = basis.components;
   nlohmann::ordered_json info;
   info["width"] = width;
   info["height"] = height;
   info["format"] = "jpg";
-  info["type"] = "bilinear";
-  info["resolution"] = basis.resolution;
-  info["colorspace"] = "mrgb";
+  info["type"] = basis.rbf() ? "rbf" : "bilinear";
+  if (!basis.rbf()) info["resolution"] = basis.resolution;
+  info["colorspace"] = ycc[0] > 0 ? "mycc" : "mrgb";
+  if (basis.rbf()) info["sigma"] = basis.sigma;
   std::vector<double> flat;
-  for (const auto& l : lights) {
-    for (double v : l) flat.push_back(std::round(v * 1000) / 1000);
+  // An rbf basis is held at its own lights (exactly as read): those are the ones written.
+  for (const auto& l : basis.rbf() ? basis.rbf_lights : lights) {
+    for (double v : l) flat.push_back(basis.rbf() ? v : std::round(v * 1000) / 1000);
   }
   info["lights"] = flat;
-  info["nplanes"] = k;
+  if (ycc[0] > 0)
+    info["yccplanes"] = ycc;
+  else
+    info["nplanes"] = k;
   info["quality"] = jpeg_quality;
   info["colorprofile"] = "sRGB";
   info["basis"] = basis.stored;
@@ -850,7 +923,7 @@ std::string PcaInfoText(int width, int height, const PcaBasis& basis,
   material["range"] = range;
   info["materials"] = nlohmann::ordered_json::array({material});
   // Ours, ignored by relight's readers: what produced the model.
-  info["rig"] = {{"family", "pca-bilinear"},
+  info["rig"] = {{"family", basis.rbf() ? "pca-rbf" : "pca-bilinear"},
                  {"prior", basis.prior == GridPrior::kBending ? "bending" : "membrane"},
                  {"smoothness", basis.smoothness},
                  {"light_loo_rms", basis.light_loo_rms},
@@ -864,11 +937,11 @@ Status WritePcaInfo(const std::string& folder, int width, int height, const PcaB
                     const std::vector<PlaneQuantisation>& quant,
                     const std::vector<Vec3>& lights, int jpeg_quality,
                     const std::string& near_lamp,
-                    const std::optional<PcaHdrValues>& hdr) {
+                    const std::optional<PcaHdrValues>& hdr, const std::array<int, 3>& ycc) {
   std::error_code ec;
   const fs::path path = fs::path(folder) / "info.json";
   RIG_TRY(WriteFileAtomic(path, PcaInfoText(width, height, basis, quant, lights, jpeg_quality,
-                                            near_lamp, hdr)));
+                                            near_lamp, hdr, ycc)));
   // Planes of an earlier, larger model in the same folder would be counted as its bytes
   // and confuse a reader that lists files: this model's are plane_0 .. plane_{files-1}.
   for (int n = (basis.components + 2) / 3;; ++n) {
@@ -909,32 +982,69 @@ Status CheckPlaneHeaders(const std::string& folder, int files, int width, int he
 Result<PcaModel> PcaModel::FromInfo(const nlohmann::json& info, const std::string& path) {
   PcaModel m;
   try {
-    if (info.at("type").get<std::string>() != "bilinear" ||
-        info.at("colorspace").get<std::string>() != "mrgb") {
+    const std::string type = info.at("type").get<std::string>();
+    const std::string space = info.at("colorspace").get<std::string>();
+    if ((type != "bilinear" && type != "rbf") || (space != "mrgb" && space != "mycc")) {
       return MakeError(ErrorCode::kInvalidInput, path,
-                       "type '{}' colorspace '{}' is not read here: rig reads relight's bilinear "
-                       "mrgb, ptm rgb/lrgb, hsh rgb and sh rgb folders (not yet rbf, yrbf, ybilinear)",
-                       info.at("type").get<std::string>(), info.at("colorspace").get<std::string>());
+                       "type '{}' colorspace '{}' is not read here: rig reads relight's {}", type,
+                       space, kRelightTypesRead);
     }
+    const bool rbf = type == "rbf";
     RIG_ASSIGN_OR_RETURN(m.width_, JsonIntegerIn(info.at("width"), 1, 65500, path, "width"));
     RIG_ASSIGN_OR_RETURN(m.height_, JsonIntegerIn(info.at("height"), 1, 65500, path, "height"));
-    RIG_ASSIGN_OR_RETURN(const int k, JsonIntegerIn(info.at("nplanes"), 1, 64, path, "nplanes"));
-    RIG_ASSIGN_OR_RETURN(const int res, JsonIntegerIn(info.at("resolution"), 2, 64, path, "resolution"));
-    if (m.width_ <= 0 || m.height_ <= 0 || m.width_ > 65500 || m.height_ > 65500 || k < 1 ||
-        k > 64 || res < 2 || res > 64) {
-      return MakeError(ErrorCode::kInvalidInput, path,
-                       "width {} height {} nplanes {} resolution {} out of range", m.width_,
-                       m.height_, k, res);
+    int k = 0;
+    if (space == "mycc") {
+      // [ny, nc, nc]: ny ≥ nc planes of Y, nc of each chroma channel (RtiBuilder::pickBasePCA)
+      const auto& y = info.at("yccplanes");
+      if (!y.is_array() || y.size() != 3)
+        return MakeError(ErrorCode::kInvalidInput, path, "yccplanes: 3 numbers expected");
+      for (int i = 0; i < 3; ++i) {
+        RIG_ASSIGN_OR_RETURN(m.ycc_planes_[i], JsonIntegerIn(y[i], i == 0 ? 1 : 0, 64, path,
+                                                            fmt::format("yccplanes[{}]", i)));
+      }
+      if (m.ycc_planes_[1] != m.ycc_planes_[2] || m.ycc_planes_[1] > m.ycc_planes_[0]) {
+        return MakeError(ErrorCode::kInvalidInput, path,
+                         "yccplanes: [{}, {}, {}], [ny, nc, nc] with nc <= ny expected",
+                         m.ycc_planes_[0], m.ycc_planes_[1], m.ycc_planes_[2]);
+      }
+      k = m.ycc_planes_[0] + 2 * m.ycc_planes_[1];
+      if (k > 64) return MakeError(ErrorCode::kInvalidInput, path, "yccplanes: {} planes, at most 64", k);
+    } else {
+      RIG_ASSIGN_OR_RETURN(k, JsonIntegerIn(info.at("nplanes"), 1, 64, path, "nplanes"));
+    }
+    int res = 0;
+    PcaBasis& b = m.basis_;
+    if (rbf) {
+      // Rti::load: sigma and the lights the basis is held at (the rbf's nodes).
+      RIG_ASSIGN_OR_RETURN(b.sigma, JsonNumber(info.at("sigma"), path, "sigma"));
+      if (!(b.sigma > 1e-3 && b.sigma <= 100))
+        return MakeError(ErrorCode::kInvalidInput, path, "sigma: {} outside (0.001, 100]", b.sigma);
+      const auto& l = info.at("lights");
+      if (!l.is_array() || l.empty() || l.size() % 3 != 0 || l.size() > 3 * 4096) {
+        return MakeError(ErrorCode::kInvalidInput, path,
+                         "lights: {} numbers, 3 per light (1..4096 lights) expected for type rbf",
+                         l.is_array() ? l.size() : 0);
+      }
+      for (size_t i = 0; i < l.size(); i += 3) {
+        Vec3 v;
+        for (int c = 0; c < 3; ++c) {
+          RIG_ASSIGN_OR_RETURN(v[c], JsonNumber(l[i + c], path, fmt::format("lights[{}]", i + c)));
+          if (std::abs(v[c]) > 2)
+            return MakeError(ErrorCode::kInvalidInput, path, "lights[{}]: {} is no direction", i + c, v[c]);
+        }
+        b.rbf_lights.push_back(v);
+      }
+    } else {
+      RIG_ASSIGN_OR_RETURN(res, JsonIntegerIn(info.at("resolution"), 2, 64, path, "resolution"));
     }
     m.jpeg_quality_ = 95;
     if (info.contains("quality")) {
       RIG_ASSIGN_OR_RETURN(m.jpeg_quality_, JsonIntegerIn(info.at("quality"), 1, 100, path, "quality"));
     }
-    PcaBasis& b = m.basis_;
     b.components = k;
     b.resolution = res;
     const auto& basis = info.at("basis");
-    const size_t want = static_cast<size_t>(k + 1) * res * res * 3;
+    const size_t want = static_cast<size_t>(k + 1) * b.nodes() * 3;
     if (!basis.is_array() || basis.size() != want) {
       return MakeError(ErrorCode::kInvalidInput, path, "'basis' has {} values, {} expected",
                        basis.is_array() ? basis.size() : 0, want);
@@ -969,7 +1079,7 @@ Result<PcaModel> PcaModel::FromInfo(const nlohmann::json& info, const std::strin
       m.quant_.push_back(q);
     }
     b.values.resize(want);
-    const int nodes = res * res;
+    const int nodes = b.nodes();
     for (size_t i = 0; i < want; ++i) {
       const int p = static_cast<int>(i / (static_cast<size_t>(nodes) * 3));
       b.values[i] = p == 0 ? b.stored[i] : (b.stored[i] - 127) / b.range[p - 1];
@@ -1026,7 +1136,8 @@ Result<PcaModel> PcaModel::Load(const std::string& folder) {
 
 Result<PcaModel> PcaModel::AsStored(uint64_t* bytes) const {
   const std::string text =
-      PcaInfoText(width_, height_, basis_, quant_, lights_, jpeg_quality_, near_lamp_, hdr_);
+      PcaInfoText(width_, height_, basis_, quant_, lights_, jpeg_quality_, near_lamp_, hdr_,
+                  ycc_planes_);
   nlohmann::json info;
   try {
     info = nlohmann::json::parse(text);
@@ -1049,7 +1160,7 @@ Result<PcaModel> PcaModel::AsStored(uint64_t* bytes) const {
 PcaBasis TruncatePcaBasis(const PcaBasis& basis, int k) {
   PcaBasis b = basis;
   k = std::clamp(k, 1, basis.components);
-  const size_t n = static_cast<size_t>(k + 1) * basis.resolution * basis.resolution * 3;
+  const size_t n = static_cast<size_t>(k + 1) * basis.nodes() * 3;
   b.components = k;
   b.stored.resize(n);
   b.values.resize(n);
@@ -1075,13 +1186,20 @@ class PcaFamily final : public ReflectanceModel {
     spacing_deg_ = m_.lights().empty() ? 0 : SampleSpacingDeg(m_.lights());
     if (m_.hdr()) frame_ = m_.hdr()->light_frame;
   }
-  std::string family() const override { return "pca-bilinear"; }
+  std::string family() const override { return "pca-" + m_.relight_type(); }
   std::string Describe() const override {
     const auto& b = m_.basis();
-    return fmt::format("pca-bilinear: {} components, {}x{} octahedral grid ({} prior, strength "
-                       "{:.3g}), 8-bit planes, JPEG q{}",
-                       b.components, b.resolution, b.resolution,
-                       b.prior == GridPrior::kBending ? "bending" : "membrane", b.smoothness,
+    const std::string planes =
+        m_.ycc() ? fmt::format("{} planes of Y, {} of each of Co and Cg (mycc)", m_.ycc_planes()[0],
+                               m_.ycc_planes()[1])
+                 : fmt::format("{} components", b.components);
+    const std::string lights =
+        b.rbf() ? fmt::format("Gaussians of width {:.3g} around {} lights (relight's rbf)", b.sigma,
+                              b.rbf_lights.size())
+                : fmt::format("{}x{} octahedral grid ({} prior, strength {:.3g})", b.resolution,
+                              b.resolution, b.prior == GridPrior::kBending ? "bending" : "membrane",
+                              b.smoothness);
+    return fmt::format("{}: {}, {}, 8-bit planes, JPEG q{}", family(), planes, lights,
                        m_.jpeg_quality()) +
            (m_.hdr() ? fmt::format(", reflectance of radiance maps through a {} curve up to {:.4g}",
                                    HdrCurveName(m_.hdr()->curve.curve), m_.hdr()->curve.max)

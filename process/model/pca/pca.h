@@ -67,7 +67,12 @@ struct PcaOptions {
 // stored (the integers of relight's "basis" array and the per-component "range").
 struct PcaBasis {
   int components = 0, resolution = 0;
-  std::vector<int> stored;     // ((p * R² + node) * 3 + c), p = 0 the mean (0..255), node x + y·R
+  // relight's "rbf" type (read, not fitted here): the light dependence held at each of these
+  // lights, interpolated by normalised Gaussians of width `sigma` (Rti::lightWeightsRbf); a
+  // node is then a light. Empty: the octahedral grid of `resolution`² nodes.
+  std::vector<Vec3> rbf_lights;
+  double sigma = 0;
+  std::vector<int> stored;     // ((p * nodes + node) * 3 + c), p = 0 the mean (0..255), node x + y·R
   std::vector<double> range;   // per component p = 1..k: stored = 127 + range · e
   std::vector<double> values;  // `stored` decoded: the mean in 0..255, components e
   GridPrior prior = GridPrior::kBending;
@@ -75,7 +80,10 @@ struct PcaBasis {
   double light_loo_rms = 0;     // the grid fit's leave-one-out error over lights (0..255 units)
   std::vector<double> eigenvalues;  // of the k components (variance, 0..255 units²)
 
-  // The (k + 1) × 3 values at a direction: [p * 3 + c], bilinear as relight reads them.
+  bool rbf() const { return !rbf_lights.empty(); }
+  int nodes() const { return rbf() ? static_cast<int>(rbf_lights.size()) : resolution * resolution; }
+  // The (k + 1) × 3 values at a direction: [p * 3 + c], as relight reads them (bilinear on
+  // the grid, or the rbf weights of the lights).
   void Evaluate(const Vec3& direction, double* out) const;
 };
 
@@ -91,6 +99,10 @@ struct PcaFitStats {
   size_t refitted_pixels = 0;  // pixels whose coefficients were solved around masked samples
   double time_s = 0;
 };
+
+// What relight's web format folders this build reads, as messages list them.
+inline constexpr const char* kRelightTypesRead =
+    "ptm rgb/lrgb, hsh rgb, sh rgb, bilinear and rbf mrgb, ybilinear and yrbf (mycc) folders";
 
 // How the coefficient planes are stored: YCbCr 4:4:4, as relight's builder writes every
 // plane file (mrgb included) and as every version of its reader decodes them (some force the
@@ -120,6 +132,13 @@ class PcaModel {
   const std::vector<Vec3>& lights() const { return lights_; }
   int jpeg_quality() const { return jpeg_quality_; }
   const std::vector<cv::Mat>& planes() const { return planes_; }  // k × CV_8U
+  // relight's "mycc" colour space (read, not fitted here): [ny, nc, nc] planes of luminance and
+  // of the two chroma channels (YCoCg), the first 3·nc interleaved Y, Co, Cg, then Y alone;
+  // {0, 0, 0}: mrgb (every plane feeds the three channels).
+  const std::array<int, 3>& ycc_planes() const { return ycc_planes_; }
+  bool ycc() const { return ycc_planes_[0] > 0; }
+  // "bilinear", "rbf", "ybilinear" or "yrbf": relight's name of the type and colour space.
+  std::string relight_type() const;
   // A near lamp's correction of the samples it was fitted to (info.json's rig.near_lamp);
   // empty: none.
   const std::string& near_lamp() const { return near_lamp_; }
@@ -154,6 +173,7 @@ class PcaModel {
   int width_ = 0, height_ = 0;
   int jpeg_quality_ = 95;
   PcaBasis basis_;
+  std::array<int, 3> ycc_planes_ = {0, 0, 0};
   std::vector<PlaneQuantisation> quant_;
   std::vector<cv::Mat> planes_;  // k × CV_8U, the quantised coefficients
   std::vector<Vec3> lights_;     // the fitted lights (written as relight does)
@@ -235,12 +255,14 @@ void QuantisePcaPlane(const Eigen::MatrixXf& coefficients, int p, const PlaneQua
 // info.json alone, exactly as PcaModel::Save writes it beside the planes (replaced through a
 // temporary name), for writers that produce the planes themselves; the folder must exist.
 // `near_lamp` (non-empty): how the samples were corrected for a near lamp, written in the
-// "rig" block; `hdr`: what the codes are, in the "rig" block's "values".
+// "rig" block; `hdr`: what the codes are, in the "rig" block's "values"; `ycc`: mycc's
+// yccplanes (PcaModel::ycc_planes), else mrgb.
 Status WritePcaInfo(const std::string& folder, int width, int height, const PcaBasis& basis,
                     const std::vector<PlaneQuantisation>& quantisation,
                     const std::vector<Vec3>& lights, int jpeg_quality,
                     const std::string& near_lamp = "",
-                    const std::optional<PcaHdrValues>& hdr = std::nullopt);
+                    const std::optional<PcaHdrValues>& hdr = std::nullopt,
+                    const std::array<int, 3>& ycc = {0, 0, 0});
 
 // The same basis with only its first k components (exact: each is quantised on its own).
 PcaBasis TruncatePcaBasis(const PcaBasis& basis, int k);
