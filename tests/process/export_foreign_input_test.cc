@@ -85,8 +85,11 @@ TEST(ExportForeignInput, WebFoldersTruncatedUnknownOrInconsistentAreRefusedNamin
   }
   // unknown variants
   ExpectRefused(Edited(good, "ycc", [](auto& i) { i["colorspace"] = "ycc"; }), "info.json", "colorspace");
+  ExpectRefused(Edited(good, "dmd", [](auto& i) { i["type"] = "dmd"; i["colorspace"] = "mrgb"; }),
+                "info.json", "type 'dmd'");
+  // relight's rbf is read now: one without its sigma (or its basis) is refused naming it
   ExpectRefused(Edited(good, "rbf", [](auto& i) { i["type"] = "rbf"; i["colorspace"] = "mrgb"; }),
-                "info.json", "type 'rbf'");
+                "info.json", "sigma");
   ExpectRefused(Edited(good, "png", [](auto& i) { i["format"] = "png"; }), "info.json", "format");
   // inconsistent: plane count against the type, scale/bias against nplanes, sizes against the planes
   ExpectRefused(Edited(good, "nplanes", [](auto& i) { i["nplanes"] = 27; }), "info.json", "nplanes");
@@ -124,7 +127,8 @@ TEST(ExportForeignInput, BilinearFoldersWithInconsistentBasisOrMaterialsAreRefus
   ExpectRefused(Edited(good, "range", [](auto& i) { i["materials"][0]["range"].erase(0); }), "info.json",
                 "materials");
   ExpectRefused(Edited(good, "resolution", [](auto& i) { i.erase("resolution"); }), "info.json", "resolution");
-  ExpectRefused(Edited(good, "mycc", [](auto& i) { i["colorspace"] = "mycc"; }), "info.json", "colorspace 'mycc'");
+  // mycc is read now (ybilinear, yrbf): without its yccplanes it is refused naming them
+  ExpectRefused(Edited(good, "mycc", [](auto& i) { i["colorspace"] = "mycc"; }), "info.json", "yccplanes");
 }
 
 TEST(ExportForeignInput, AnInfoJsonThatIsAFifoOrHugeIsRefusedAtOnceNotRead) {

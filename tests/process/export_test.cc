@@ -386,12 +386,12 @@ TEST(ExportReaders, ShFoldersRenderWithRelightsRealHarmonics) {
       }
     }
   }
-  // A type still not read says what is.
+  // A type not read (relight's dmd) says what is.
   const std::string rbf = Temp("sh9");
   {
     std::ifstream f(rbf + "/info.json");
     auto info = nlohmann::ordered_json::parse(f);
-    info["type"] = "rbf";
+    info["type"] = "dmd";
     std::ofstream(rbf + "/info.json") << info.dump();
   }
   auto r = LoadAnyModel(rbf);
