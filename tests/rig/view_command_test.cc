@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <mutex>
 #include <thread>
@@ -65,9 +66,10 @@ void AddReportHook(const std::string& dir) {
   const std::string js_path = dir + "/viewer.js";
   std::string js = testing::ReadText(js_path);
   if (js.find("params.get('report')") != std::string::npos) return;  // added already
-  const size_t end = js.rfind("})();");
-  ASSERT_NE(end, std::string::npos) << js_path << " does not end in its closure";
-  js.insert(end, testing::ReadText(testing::SourceDir() + "/tests/rig/viewer_report_hook.js"));
+  const std::string mark = "  // (the test hook goes here";
+  const size_t at = js.find(mark);
+  ASSERT_NE(at, std::string::npos) << js_path << " has no place marked for the test hook";
+  js.insert(at, testing::ReadText(testing::SourceDir() + "/tests/rig/viewer_report_hook.js"));
   std::ofstream(js_path, std::ios::binary) << js;
 }
 
@@ -458,6 +460,60 @@ TEST_F(ViewTest, NormalsBesideTheModelAreShown) {
   cv::cvtColor(normals, rgb, cv::COLOR_BGR2RGB);
   const Diff d = Compare(run.shots.at(0), rgb);
   EXPECT_EQ(d.max, 0) << "mean " << d.mean;
+}
+
+// data.js of a page folder: `window.RIG_VIEW = {...};` after a comment line, edited.
+void EditPageData(const std::string& view, const std::function<void(nlohmann::json&)>& edit) {
+  const std::string path = view + "/data.js", text = testing::ReadText(path);
+  const size_t at = text.find("window.RIG_VIEW = ");
+  ASSERT_NE(at, std::string::npos) << path;
+  const size_t begin = at + std::string("window.RIG_VIEW = ").size(), end = text.rfind(';');
+  ASSERT_GT(end, begin) << path;
+  nlohmann::json d = nlohmann::json::parse(text.substr(begin, end - begin));
+  edit(d);
+  std::ofstream(path, std::ios::binary) << text.substr(0, begin) << d.dump() << ";\n";
+}
+
+// The first view rejects, naming what failed, when the page cannot show the model: a plane
+// the server does not have, a plane that is not an image, a type the page does not draw. (It
+// used to resolve over a picture with a plane missing, or never be defined.)
+TEST_F(ViewTest, FirstViewRejectsNamingWhatFailed) {
+  const std::string model = WriteShModel(dir_, FitSpace::kSrgb);
+  struct Case {
+    std::string name, expect;
+    std::function<void(const std::string&, nlohmann::json&)> edit;
+  };
+  const std::vector<Case> cases = {
+      {"missing", "plane_1.jpg: HTTP 404",
+       [](const std::string& view, nlohmann::json& d) {
+         d["embedded"].erase("plane_1.jpg");
+         fs::remove(view + "/plane_1.jpg");
+       }},
+      {"corrupt", "plane_0.jpg: not an image the browser decodes",
+       [](const std::string&, nlohmann::json& d) { d["embedded"]["plane_0.jpg"] = "bm90IGEgSlBFRw=="; }},
+      {"type", "Type \"dmd\" is not shown here",
+       [](const std::string&, nlohmann::json& d) { d["info"]["type"] = "dmd"; }},
+  };
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.name);
+    const std::string view = dir_ + "/page-" + c.name;
+    const auto r = RunRig("view " + model + " --out " + view);
+    ASSERT_EQ(r.status, 0) << r.output;
+    EditPageData(view, [&](nlohmann::json& d) { c.edit(view, d); });
+    const PageRun run = RunPage(view, "fit=native&ui=0&shots=0,0,1", false, 400, 320, 30);
+    ASSERT_TRUE(run.finished) << "the page did not report (requests: " << run.requests.size() << ")";
+    EXPECT_THAT(run.done.value("failed", ""), HasSubstr(c.expect));
+    EXPECT_THAT(run.done.value("message", ""), HasSubstr(c.expect));  // shown in the panel too
+    EXPECT_TRUE(run.shots.empty());
+  }
+  // The page unedited reports its views (the hook's success path in the same set-up).
+  const std::string view = dir_ + "/page-good";
+  ASSERT_EQ(RunRig("view " + model + " --out " + view).status, 0);
+  const PageRun run = RunPage(view, "fit=native&ui=0&shots=0,0,1");
+  ASSERT_TRUE(run.finished);
+  EXPECT_EQ(run.done.value("failed", ""), "");
+  EXPECT_GT(run.done.value("first_view_ms", -1.0), 0);
+  EXPECT_EQ(run.shots.size(), 1u);
 }
 
 TEST_F(ViewTest, RefusesAnExistingFolderAndABadLight) {

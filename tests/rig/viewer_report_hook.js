@@ -1,13 +1,23 @@
   // The relighting page's test hook, for tests/rig/view_command_test.cc only: the test puts it
-  // into its own copy of viewer.js (inside the page's closure, before its last line); the
+  // into its own copy of viewer.js (inside the page's closure, where the page marks it, before
+  // anything can fail); the
   // published page has no such hook (it sent the rendered pixels and the page's address to
   // any URL named in ?report=).
   // ?report=URL&shots=x,y,z|x,y,z...: each shot's pixels POSTed to URL (raw RGBA,
-  // rows top-down), then URL/done with the resources the page loaded.
+  // rows top-down), then URL/done with the resources the page loaded; when the first view
+  // rejects, URL/done with {failed: its reason} at once.
   const report = params.get('report');
   if (report) {
     (async () => {
-      const firstMs = await window.rigFirstView, fullMs = await window.rigFullView;
+      let firstMs, fullMs;
+      try {
+        firstMs = await window.rigFirstView;
+        fullMs = await window.rigFullView;
+      } catch (e) {
+        await fetch(report + '/done', { method: 'POST', mode: 'no-cors',
+                                        body: JSON.stringify({ failed: String(e.message || e), message: message.textContent }) });
+        return;
+      }
       const shots = (params.get('shots') || '').split('|').filter((s) => s);
       const send = (path, body) => fetch(report + path, { method: 'POST', body, mode: 'no-cors' });
       for (let i = 0; i < Math.max(1, shots.length); ++i) {

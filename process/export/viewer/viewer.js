@@ -9,7 +9,27 @@
   const params = new URLSearchParams(location.search);
   const canvas = document.getElementById('view');
   const message = document.getElementById('message');
-  const fail = (text) => { message.textContent = text; throw new Error(text); };
+  // window.rigFirstView / window.rigFullView: the time (ms after navigation) of the first whole
+  // picture / of every tile of the level the view needs; both reject, with the reason, when the
+  // page fails instead (a model it cannot show, no WebGL2, a plane or tile that does not load).
+  const viewEnds = [];
+  const viewPromise = () => {
+    const p = new Promise((resolve, reject) => viewEnds.push({ resolve, reject }));
+    p.catch(() => {});  // a failure is shown in the panel; a caller that awaits it sees it too
+    return p;
+  };
+  window.rigFirstView = viewPromise();
+  window.rigFullView = viewPromise();
+  let failed = null;
+  const failView = (text) => {
+    if (failed === null) failed = text;
+    message.textContent = failed;
+    for (const e of viewEnds) e.reject(new Error(failed));
+  };
+  const fail = (text) => { failView(text); throw new Error(text); };
+  window.addEventListener('error', (e) => failView(String((e.error && e.error.message) || e.message)));
+  window.addEventListener('unhandledrejection', (e) => failView(String((e.reason && e.reason.message) || e.reason)));
+  // (the test hook goes here: tests/rig/view_command_test.cc)
   if (params.get('ui') === '0') document.body.classList.add('bare');
 
   const gl = canvas.getContext('webgl2', { preserveDrawingBuffer: true, antialias: false,
@@ -338,7 +358,11 @@ ${sum}    rad += decode(v) * uColor[l];
       if (!r.ok) throw new Error(name + ': HTTP ' + r.status);
       blob = await r.blob();
     }
-    return createImageBitmap(blob, { colorSpaceConversion: 'none', premultiplyAlpha: 'none' });
+    try {
+      return await createImageBitmap(blob, { colorSpaceConversion: 'none', premultiplyAlpha: 'none' });
+    } catch (e) {
+      throw new Error(name + ': not an image the browser decodes (' + String(e.message || e) + ')');
+    }
   }
   function textureFrom(bitmap, mipmap) {
     const t = gl.createTexture();
@@ -385,7 +409,7 @@ ${sum}    rad += decode(v) * uColor[l];
       bitmaps.forEach((b) => b.close());
       t.state = 'ready';
       tileArrived(L);
-    }).catch((e) => { t.state = 'failed'; message.textContent = String(e.message || e); tileArrived(L); });
+    }).catch((e) => { t.state = 'failed'; failView(String(e.message || e)); tileArrived(L); });
     return t;
   }
 
@@ -618,12 +642,12 @@ ${sum}    rad += decode(v) * uColor[l];
       b.close();
       modeSelect.querySelector(`option[value=${name}]`).disabled = false;
       redraw();
-    }).catch((e) => { message.textContent = String(e.message || e); });
+    }).catch((e) => { message.textContent = String(e.message || e); });  // the relit view stands
   }
   if (params.get('view')) { mode = params.get('view'); modeSelect.value = mode; }
   const status = document.getElementById('status');
-  window.rigFirstView = whenDrawn('any').then(() => performance.now());
-  window.rigFullView = whenDrawn('full').then(() => performance.now());
+  whenDrawn('any').then(() => viewEnds[0].resolve(performance.now()));
+  whenDrawn('full').then(() => viewEnds[1].resolve(performance.now()));
   if (params.get('timing') === '1') {
     Promise.all([window.rigFirstView, window.rigFullView]).then(([a, b]) => {
       status.textContent = `first view ${a.toFixed(0)} ms, every tile of its level ${b.toFixed(0)} ms`;
