@@ -59,7 +59,7 @@ double PsnrFromSse(double sse, double count) {
 
 Eigen::MatrixXd RelightDesign(RelightType type, int terms, const std::vector<Vec3>& dirs) {
   Eigen::MatrixXd w(static_cast<Eigen::Index>(dirs.size()), terms);
-  double row[9];
+  double row[kMaxRelightTerms];
   for (size_t i = 0; i < dirs.size(); ++i) {
     RelightWeights(type, terms, dirs[i], row);
     for (int t = 0; t < terms; ++t) w(static_cast<Eigen::Index>(i), t) = row[t];
@@ -81,7 +81,7 @@ RelightCoefficients EmptyLike(const RelightTarget& t, int width, int height, boo
 }
 
 Status CheckTarget(const RelightTarget& t) {
-  const bool ok = t.type == RelightType::kPtm ? t.terms == 6 : (t.terms == 9 || t.terms == 4);
+  const bool ok = t.type == RelightType::kPtm ? t.terms == 6 : (t.terms == 16 || t.terms == 9 || t.terms == 4);
   if (!ok || (t.lrgb && t.type != RelightType::kPtm)) {
     return MakeError(ErrorCode::kInvalidInput, "export",
                      "relight has no {} basis of {} terms{}", RelightTypeName(t.type), t.terms,

@@ -46,6 +46,9 @@ Result<RelightTarget> ExportTarget(const ExportRequest& a, const std::string& fa
   }
   if (a.hsh_terms && t.type != RelightType::kHsh)
     return MakeError(ErrorCode::kInvalidInput, "--hsh-terms", "only for an HSH target");
+  if (t.terms == 16 && a.format != "rti")
+    return MakeError(ErrorCode::kInvalidInput, "--hsh-terms",
+                     "16 only with --format rti (relight's web format stops at 9 terms)");
   return t;
 }
 

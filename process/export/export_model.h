@@ -19,7 +19,7 @@ struct ExportRequest {
   std::string out;             // the folder (relight) or file (.ptm, .rti)
   std::string variant = "rgb"; // PTM targets: rgb or lrgb
   std::string basis;           // relight: ptm or hsh; empty: the model's, else hsh
-  int hsh_terms = 0;           // HSH targets: 9 or 4; 0: from the source
+  int hsh_terms = 0;           // HSH targets: 16 (.rti only), 9 or 4; 0: from the source
   int quality = 98;            // relight: JPEG quality (q98: 48.2 dB for the icon's web PTM)
   bool jpeg_rgb = false;       // relight: planes in the JPEG RGB colour space
 };

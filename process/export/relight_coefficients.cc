@@ -90,7 +90,8 @@ void RelightWeights(RelightType type, int terms, const Vec3& d, double* w) {
     w[5] = ly * ly;
     return;
   }
-  RIG_CHECK(terms == 9 || terms == 4 || terms == 1, "relight's HSH and SH have 1, 4 or 9 terms");
+  RIG_CHECK(terms == 9 || terms == 4 || terms == 1 || (terms == 16 && type == RelightType::kHsh),
+            "relight's HSH and SH have 1, 4 or 9 terms (a .rti's HSH 16 too)");
   // relight takes lz = sqrt(1 - lx² - ly²), whatever the sign of the z it was given.
   const double lz = std::sqrt(std::max(0.0, 1.0 - lx * lx - ly * ly));
   if (type == RelightType::kSh) {
@@ -124,6 +125,16 @@ void RelightWeights(RelightType type, int terms, const Vec3& d, double* w) {
   w[6] = std::sqrt(5 / (2 * M_PI)) * (1 - 6 * ct + 6 * ct * ct);
   w[7] = std::sqrt(30 / M_PI) * std::sin(phi) * (2 * ct - 1) * s;
   w[8] = std::sqrt(30 / M_PI) * std::sin(2 * phi) * (ct * ct - ct);
+  if (terms == 9) return;
+  // The third degree (RTIViewer's HSH of order 4): s³ = (cosθ - cos²θ)^1.5.
+  const double s3 = s * s * s, p3 = 1 - 5 * ct + 5 * ct * ct;
+  w[9] = 2 * std::sqrt(35 / M_PI) * std::cos(3 * phi) * s3;
+  w[10] = std::sqrt(210 / M_PI) * std::cos(2 * phi) * (2 * ct - 1) * (ct * ct - ct);
+  w[11] = 2 * std::sqrt(21 / M_PI) * std::cos(phi) * s * p3;
+  w[12] = std::sqrt(7 / (2 * M_PI)) * (-1 + 12 * ct - 30 * ct * ct + 20 * ct * ct * ct);
+  w[13] = 2 * std::sqrt(21 / M_PI) * std::sin(phi) * s * p3;
+  w[14] = std::sqrt(210 / M_PI) * std::sin(2 * phi) * (2 * ct - 1) * (ct * ct - ct);
+  w[15] = 2 * std::sqrt(35 / M_PI) * std::sin(3 * phi) * s3;
 }
 
 std::string RelightCoefficients::Summary() const {
@@ -132,7 +143,9 @@ std::string RelightCoefficients::Summary() const {
 }
 
 void CheckRelightCoefficients(const RelightCoefficients& c) {
-  RIG_CHECK(c.type == RelightType::kPtm ? c.terms == 6 : (c.terms == 9 || c.terms == 4 || c.terms == 1),
+  RIG_CHECK(c.type == RelightType::kPtm ? c.terms == 6
+                                         : (c.terms == 9 || c.terms == 4 || c.terms == 1 ||
+                                            (c.terms == 16 && c.type == RelightType::kHsh)),
             "relight coefficients: wrong number of terms for the type");
   RIG_CHECK(!c.lrgb || c.type == RelightType::kPtm, "lrgb is a PTM colorspace");
   RIG_CHECK(static_cast<int>(c.planes.size()) == c.terms, "relight coefficients: plane count");
@@ -147,7 +160,7 @@ void CheckRelightCoefficients(const RelightCoefficients& c) {
 }
 
 cv::Mat RenderRelight(const RelightCoefficients& c, const Vec3& direction) {
-  double w[9];
+  double w[kMaxRelightTerms];
   RelightWeights(c.type, c.terms, direction, w);
   cv::Mat out = cv::Mat::zeros(c.height, c.width, CV_32FC3);
   if (!c.lrgb) {

@@ -20,10 +20,14 @@ const char* RelightTypeName(RelightType type);  // "ptm", "hsh", "sh"
 
 // relight's light weights at a direction (normalised inside; lz = sqrt(1 - lx² - ly²) as
 // relight takes it). PTM, 6 terms: [1, lx, ly, lx², lx·ly, ly²] (Rti::lightWeightsPtm).
-// HSH, 4 or 9 terms: Rti::lightWeightsHsh, θ clamped at π/2 - 0.01.
+// HSH, 4 or 9 terms: Rti::lightWeightsHsh, θ clamped at π/2 - 0.01; 16 terms (order 4, the
+// .rti's largest HSH in RTIViewer, whose hsh weights add w9..w15) for .rti files only:
+// relight's renderer and its web format stop at 9.
 // SH, 4 or 9 terms: Rti::lightWeightsSh, the real spherical harmonics of degree ≤ 2 in
 // Cartesian form with relight's constants (Y00, Y1-1 = y, Y10 = z, Y11 = x, Y2-2 ... Y22).
 // relight's JS viewer draws no sh: a page of an sh model is made as hsh (rig view says so).
+// `w` holds kMaxRelightTerms values.
+constexpr int kMaxRelightTerms = 16;
 void RelightWeights(RelightType type, int terms, const Vec3& direction, double* w);
 
 // One model in relight's basis. Values are relight's: 0..255 pixel units of sRGB-encoded
@@ -33,7 +37,7 @@ void RelightWeights(RelightType type, int terms, const Vec3& direction, double* 
 //         (whole numbers: bytes);                       out_c = (Σ_j w_j(l) · planes[j] / 255) · albedo_c
 struct RelightCoefficients {
   RelightType type = RelightType::kPtm;
-  int terms = 6;  // ptm: 6; hsh, sh: 9 or 4
+  int terms = 6;  // ptm: 6; hsh, sh: 9 or 4; hsh of a .rti: 16 too
   bool lrgb = false;  // ptm only
   int width = 0, height = 0;
   std::vector<cv::Mat> planes;

@@ -231,6 +231,12 @@ Status WriteRelightWeb(const std::string& folder, const RelightCoefficients& c,
                        const WebWriteOptions& o) {
   CheckRelightCoefficients(c);
   RIG_TRY(CheckFinite(c, folder));
+  if (c.terms > 9) {
+    return MakeError(ErrorCode::kInvalidInput, folder,
+                     "relight's web format holds an HSH of at most 9 terms (its renderer weighs 9); "
+                     "this one has {}: keep it as a .rti (RTIViewer), or refit to 9 (rig export "
+                     "MODEL --format relight --hsh-terms 9)", c.terms);
+  }
   if (o.quality < 1 || o.quality > 100) {
     return MakeError(ErrorCode::kInvalidInput, folder, "JPEG quality {} is outside 1..100", o.quality);
   }
@@ -698,8 +704,8 @@ Result<RelightCoefficients> ReadRti(const std::string& path) {
   RIG_ASSIGN_OR_RETURN(std::vector<double> basis,
                        Numbers(bline, 3, path, "terms basis_type element_size"));
   RIG_ASSIGN_OR_RETURN(int terms, Integer(basis[0], path, "terms"));
-  if (terms != 9 && terms != 4 && terms != 1) {
-    return MakeError(ErrorCode::kInvalidInput, path, "terms: {} (HSH of 1, 4 or 9 terms expected)", terms);
+  if (terms != 9 && terms != 4 && terms != 1 && terms != 16) {
+    return MakeError(ErrorCode::kInvalidInput, path, "terms: {} (HSH of 1, 4, 9 or 16 terms expected)", terms);
   }
   if (basis[2] != 1) {
     return MakeError(ErrorCode::kInvalidInput, path, "element_size: {} (1-byte elements only)", basis[2]);

@@ -33,7 +33,7 @@ RelightCoefficients FitRgb(const LightSamples& s, const RelightTarget& t, const 
                            int threads, size_t* refitted) {
   const int terms = t.terms, n = static_cast<int>(use.size());
   Eigen::MatrixXd w(n, terms);
-  double row[9];
+  double row[kMaxRelightTerms];
   for (int i = 0; i < n; ++i) {
     RelightWeights(t.type, terms, s.directions[use[i]], row);
     for (int k = 0; k < terms; ++k) w(i, k) = row[k];
@@ -140,11 +140,11 @@ Result<RelightCoefficients> AsWritten(const RelightCoefficients& c, const std::s
 Result<RelightFit> FitRelightToSamples(const LightSamples& s, const RelightTarget& t,
                                        const RelightFitOptions& o) {
   const bool ok = t.type == RelightType::kPtm ? t.terms == 6
-                  : t.type == RelightType::kHsh ? (t.terms == 9 || t.terms == 4)
+                  : t.type == RelightType::kHsh ? (t.terms == 9 || t.terms == 4 || t.terms == 16)
                                                 : false;
   if (!ok || (t.lrgb && t.type != RelightType::kPtm)) {
     return MakeError(ErrorCode::kInvalidInput, "fit",
-                     "no {} basis of {} terms{} is written here (ptm 6 rgb/lrgb, hsh 9 or 4)",
+                     "no {} basis of {} terms{} is written here (ptm 6 rgb/lrgb, hsh 4, 9 or 16)",
                      RelightTypeName(t.type), t.terms, t.lrgb ? " in lrgb" : "");
   }
   if (s.lights() < t.terms) {

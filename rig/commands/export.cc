@@ -81,8 +81,8 @@ int RunExport(int argc, char** argv) {
   app.add_option("--ptm-variant", a.variant,
                  "PTM targets: rgb (default) or lrgb (luminance PTM x RGB albedo; relight's lptm)");
   app.add_option("--basis", a.basis, "--format relight: ptm or hsh (default: the model's, else hsh)");
-  app.add_option("--hsh-terms", a.hsh_terms, "HSH targets: 9 (default) or 4")
-      ->check(CLI::IsMember({4, 9}));
+  app.add_option("--hsh-terms", a.hsh_terms, "HSH targets: 9 (default), 4, or 16 (--format rti only)")
+      ->check(CLI::IsMember({4, 9, 16}));
   app.add_option("--jpeg-quality", a.quality, "--format relight: JPEG quality (default 98; relight writes 95, which loses ~4 dB on "
                  "PTM planes: docs/viewer.md)")
       ->check(CLI::Range(1, 100));

@@ -48,8 +48,8 @@ void AddOptions(CLI::App& app, FitArgs* a) {
                  "with --lp, a .ptm (PTM, 6 terms) or .rti (HSH) file fitted straight from the "
                  "photographs for RTIViewer");
   app.add_option("--ptm-variant", a->ptm_variant, "--out X.ptm: rgb (default) or lrgb");
-  app.add_option("--hsh-terms", a->hsh_terms, "--out X.rti: 9 (default) or 4 HSH terms")
-      ->check(CLI::IsMember({4, 9}));
+  app.add_option("--hsh-terms", a->hsh_terms, "--out X.rti: 9 (default), 16 (third order, needs 16 or more lights) or 4 HSH terms")
+      ->check(CLI::IsMember({4, 9, 16}));
   app.add_option("--held-out-every", a->held_out_every,
                  "--out X.ptm|X.rti: hold out every n-th image, refit without them and print the "
                  "error there of the file as written (default 6; 0: none)")
@@ -197,7 +197,7 @@ int RunLpRelightFile(const FitArgs& a, const RtiCapture& capture) {
   std::printf("rig fit: %s: %s straight from %d images %dx%d (least squares in code values, "
               "masked samples left out)%s...\n",
               a.lp.c_str(), ptm ? (t.lrgb ? "PTM lrgb, 6 terms" : "PTM rgb, 6 terms per channel")
-                                : (t.terms == 9 ? "HSH, 9 terms per channel" : "HSH, 4 terms per channel"),
+                                : fmt::format("HSH, {} terms per channel", t.terms).c_str(),
               capture.samples.lights(), capture.samples.width, capture.samples.height,
               o.every > 0 ? fmt::format("; then again without every {}th image, for its error", o.every).c_str() : "");
   std::fflush(stdout);
