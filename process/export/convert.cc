@@ -2,8 +2,13 @@
 #include "process/export/convert.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <condition_variable>
+#include <functional>
 #include <limits>
+#include <mutex>
+#include <thread>
 
 #include <Eigen/Dense>
 #include <fmt/format.h>
@@ -14,7 +19,14 @@ namespace rig {
 namespace {
 
 // 255 · sRGB(ρ): the model's values in relight's units (CV_32FC3, B, G, R).
+// A photographs' model gives its code values as they are (no sRGB decode and encode: that
+// round trip was two thirds of an export's time).
 cv::Mat EncodedValues(const ReflectanceModel& m, const Vec3& d, double gain = 1) {
+  if (gain == 1 && m.encoding() == ValueEncoding::kSrgb) {
+    cv::Mat v = m.EvaluateEncoded(d);
+    v *= 255.0;
+    return v;
+  }
   cv::Mat v = m.EvaluateRho(d).clone();
   float* p = v.ptr<float>();
   const size_t n = v.total() * 3;
@@ -38,6 +50,29 @@ double DisplayGain(const ReflectanceModel& m, const std::vector<Vec3>& lights) {
   const size_t q = static_cast<size_t>(0.995 * (sample.size() - 1));
   std::nth_element(sample.begin(), sample.begin() + q, sample.end());
   return sample[q] > 1 ? 1.0 / sample[q] : 1.0;
+}
+
+// fn(i) for i in [0, n) on up to `hardware_concurrency` threads (renders are const and
+// independent); fn must guard whatever it shares.
+void ForEachLight(size_t n, const std::function<void(size_t)>& fn) {
+  const size_t threads = std::clamp<size_t>(std::thread::hardware_concurrency(), 1, 8);
+  std::atomic<size_t> next{0};
+  auto work = [&] {
+    for (size_t i = next++; i < n; i = next++) fn(i);
+  };
+  std::vector<std::thread> pool;
+  for (size_t t = 1; t < std::min(threads, n); ++t) pool.emplace_back(work);
+  work();
+  for (auto& t : pool) t.join();
+}
+
+// Σ over lights of f(light), summed in light order whatever thread ran it (reproducible).
+double SumOverLights(const std::vector<Vec3>& lights, const std::function<double(const Vec3&)>& f) {
+  std::vector<double> each(lights.size(), 0);
+  ForEachLight(lights.size(), [&](size_t i) { each[i] = f(lights[i]); });
+  double sum = 0;
+  for (double v : each) sum += v;
+  return sum;
 }
 
 double SquaredError(const cv::Mat& a, const cv::Mat& b) {
@@ -110,11 +145,21 @@ Result<RelightCoefficients> Refit(const ReflectanceModel& m, RelightTarget t,
       svd.matrixV() * s.cwiseInverse().asDiagonal() * svd.matrixU().transpose();  // T × N
   t.lrgb = false;
   RelightCoefficients c = EmptyLike(t, m.width(), m.height(), false);
-  for (size_t i = 0; i < lights.size(); ++i) {
+  // Renders in parallel, added in light order (one set of planes however many threads, and the
+  // same file from every run): lights are handed out in order, so the one whose turn it is is
+  // always being rendered.
+  std::mutex add;
+  std::condition_variable turn;
+  size_t next_to_add = 0;
+  ForEachLight(lights.size(), [&](size_t i) {
     const cv::Mat v = EncodedValues(m, lights[i], gain);
+    std::unique_lock<std::mutex> lock(add);
+    turn.wait(lock, [&] { return next_to_add == i; });
     for (int j = 0; j < t.terms; ++j)
       cv::scaleAdd(v, p(j, static_cast<Eigen::Index>(i)), c.planes[j], c.planes[j]);
-  }
+    ++next_to_add;
+    turn.notify_all();
+  });
   return c;
 }
 
@@ -154,8 +199,9 @@ namespace {
 
 double PsnrAt(const ReflectanceModel& source, const RelightCoefficients& c,
               const std::vector<Vec3>& lights, double gain) {
-  double sse = 0;
-  for (const auto& l : lights) sse += SquaredError(EncodedValues(source, l, gain), RenderRelight(c, l));
+  const double sse = SumOverLights(lights, [&](const Vec3& l) {
+    return SquaredError(EncodedValues(source, l, gain), RenderRelight(c, l));
+  });
   return PsnrFromSse(sse, 3.0 * c.width * c.height * static_cast<double>(lights.size()));
 }
 
@@ -302,8 +348,9 @@ Result<Conversion> ConvertToRelight(const ReflectanceModel& model, const Relight
 
 double RenderPsnrDb(const ReflectanceModel& a, const ReflectanceModel& b,
                     const std::vector<Vec3>& directions, double gain_a) {
-  double sse = 0;
-  for (const auto& d : directions) sse += SquaredError(EncodedValues(a, d, gain_a), EncodedValues(b, d));
+  const double sse = SumOverLights(directions, [&](const Vec3& d) {
+    return SquaredError(EncodedValues(a, d, gain_a), EncodedValues(b, d));
+  });
   return PsnrFromSse(sse, 3.0 * a.width() * a.height() * static_cast<double>(directions.size()));
 }
 

@@ -52,6 +52,36 @@ Result<RelightTarget> ExportTarget(const ExportRequest& a, const std::string& fa
   return t;
 }
 
+std::string ExportPlan(const std::string& family, int source_terms, const RelightTarget& t,
+                       bool harmonic_source) {
+  const std::string name =
+      t.type == RelightType::kPtm ? (t.lrgb ? "PTM lrgb (6 terms)" : "PTM rgb (6 terms per channel)")
+                                  : fmt::format("HSH of {} terms per channel", t.terms);
+  const std::string target_family = t.type == RelightType::kPtm ? (t.lrgb ? "ptm-lrgb" : "ptm") : "hsh";
+  if (family == target_family && source_terms == t.terms) return fmt::format("{}: copied as it is", name);
+  if (family.rfind("ptm", 0) == 0 && t.type == RelightType::kPtm) {
+    return t.lrgb ? fmt::format("{} from the rgb PTM: one luminance polynomial for the three "
+                                "channels times a colour per pixel; colour that changes with the "
+                                "light is lost", name)
+                  : fmt::format("{} from the lrgb PTM: expanded exactly", name);
+  }
+  const char* holds =
+      t.type == RelightType::kPtm
+          ? "a biquadratic in the light's x, y: one broad lobe per pixel"
+          : t.terms == 4 ? "hemispherical harmonics of the first order: a tilted plane over the hemisphere"
+          : t.terms == 9 ? "hemispherical harmonics to the second order: broad lobes"
+                         : "hemispherical harmonics to the third order";
+  std::string s = fmt::format("{} holds {}; what the {} model holds beyond that (sharp highlights, "
+                              "cast shadows, interreflections) is lost: ", name, holds, family);
+  s += harmonic_source ? "mapped exactly where the model's basis lies within it, else refitted by "
+                         "least squares over the hemisphere, and measured against the model's "
+                         "own renders"
+                       : "refitted by least squares at the model's lights, and measured against "
+                         "the model's own renders there";
+  if (t.lrgb) s += "; then one luminance for the three channels times a colour per pixel";
+  return s;
+}
+
 // The chosen format written, and read back as a reader of the file would; *what says what.
 Result<RelightCoefficients> WriteExportFormat(const ExportRequest& a, const RelightCoefficients& c,
                                                      std::string* what_out) {
@@ -117,6 +147,7 @@ Result<ExportSource> ConvertForExport(const std::string& path, const ExportReque
   if (ext == ".exr") {
     RIG_ASSIGN_OR_RETURN(Model m, LoadModel(path));
     RIG_ASSIGN_OR_RETURN(RelightTarget target, ExportTarget(request, m.basis().name(), m.basis().size()));
+    if (request.announce) request.announce(ExportPlan(m.basis().name(), m.basis().size(), target, true));
     conversion = ConvertToRelight(m, target);
     s.model = WrapHarmonic(std::move(m));
   } else {
@@ -133,6 +164,7 @@ Result<ExportSource> ConvertForExport(const std::string& path, const ExportReque
     const RelightCoefficients* rc = RelightCoefficientsOf(*s.model);
     RIG_ASSIGN_OR_RETURN(RelightTarget target,
                          ExportTarget(request, s.model->family(), rc ? rc->terms : 0));
+    if (request.announce) request.announce(ExportPlan(s.model->family(), rc ? rc->terms : 0, target, false));
     conversion = ConvertToRelight(*s.model, target);
   }
   if (!conversion.ok()) return conversion.error();

@@ -3,6 +3,7 @@
 // back as a reader of the format would.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -22,7 +23,14 @@ struct ExportRequest {
   int hsh_terms = 0;           // HSH targets: 16 (.rti only), 9 or 4; 0: from the source
   int quality = 98;            // relight: JPEG quality (q98: 48.2 dB for the icon's web PTM)
   bool jpeg_rgb = false;       // relight: planes in the JPEG RGB colour space
+  // Told, before the conversion starts, what it will do and what the target cannot hold.
+  std::function<void(const std::string&)> announce;
 };
+
+// One sentence before a conversion: the model's family onto the target, and what the target's
+// basis holds (so what it loses of a model that holds more).
+std::string ExportPlan(const std::string& family, int source_terms, const RelightTarget& target,
+                       bool harmonic_source);
 
 // The target from the format and the source's own basis (its family name and terms).
 Result<RelightTarget> ExportTarget(const ExportRequest& request, const std::string& family,

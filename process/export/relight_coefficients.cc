@@ -47,6 +47,11 @@ class RelightFamily final : public ReflectanceModel {
     for (size_t i = 0; i < n; ++i) p[i] = SrgbDecode(p[i] / 255.0f);
     return v;
   }
+  cv::Mat EvaluateEncoded(const Vec3& d) const override {
+    cv::Mat v = RenderRelight(c_, d);
+    v *= 1.0 / 255.0;  // relight's values are code values
+    return v;
+  }
   RegionCheck CheckRegion(const Vec3& d) const override {
     if (!c_.lights.empty()) return CheckAgainstLamps(c_.lights, spacing_deg_, d);
     // Legacy files carry no lights: an RTI capture samples the hemisphere above the object.

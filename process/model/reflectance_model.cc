@@ -6,8 +6,19 @@
 
 #include <opencv2/core.hpp>
 
+#include "process/model/samples.h"
 
 namespace rig {
+cv::Mat ReflectanceModel::EvaluateEncoded(const Vec3& direction) const {
+  cv::Mat v = EvaluateRho(direction);
+  if (encoding() == ValueEncoding::kLinear) return v;
+  v = v.clone();
+  float* p = v.ptr<float>();
+  const size_t n = v.total() * 3;
+  for (size_t i = 0; i < n; ++i) p[i] = SrgbEncode(p[i]);
+  return v;
+}
+
 void ReflectanceModel::AddLamp(const Vec3& direction, const std::array<double, 3>& rgb_scale,
                                cv::Mat* sum) const {
   const cv::Mat rho = EvaluateRho(direction);

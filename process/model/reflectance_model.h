@@ -46,6 +46,10 @@ class ReflectanceModel {
   // ρ at a lamp direction in the object frame: linear, CV_32FC3 in B, G, R order; pixels the
   // fit flagged are 0.
   virtual cv::Mat EvaluateRho(const Vec3& direction) const = 0;
+  // The model's values in its own encoding (CV_32FC3, B, G, R): ρ for kLinear; for kSrgb the
+  // display code values 0..1 the photographs had, i.e. SrgbEncode(ρ) — which a family that
+  // holds code values gives without the decode and encode (export's refits run on these).
+  virtual cv::Mat EvaluateEncoded(const Vec3& direction) const;
   // Adds the radiance one lamp gives, ρ(dir) · E_capture · rgb_scale (R, G, B), into *sum
   // (CV_32FC3, created when empty).
   virtual void AddLamp(const Vec3& direction, const std::array<double, 3>& rgb_scale,

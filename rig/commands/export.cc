@@ -2,16 +2,16 @@
 // RTIViewer's .ptm/.rti, exactly where the format holds it, refitted (and the PSNR lost
 // printed) where it does not; every file written is read back and its PSNR measured.
 // rig export SESSION --format lp --out DIR: the session's radiance maps as an RTI capture.
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <fmt/format.h>
-
-#include <algorithm>
-#include <vector>
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -123,9 +123,16 @@ int RunExport(int argc, char** argv) {
   auto source = ResolveRenderSource(a.source);
   if (!source.ok()) return ReportError("export", source.error());
   const std::string& path = source->model_path;
-  const ExportRequest request{a.format, a.out, a.variant, a.basis, a.hsh_terms, a.quality, a.jpeg_rgb};
+  ExportRequest request{a.format, a.out, a.variant, a.basis, a.hsh_terms, a.quality, a.jpeg_rgb, {}};
+  request.announce = [&](const std::string& plan) {
+    std::printf("rig export: %s to %s: %s...\n", path.c_str(), a.format.c_str(), plan.c_str());
+    std::fflush(stdout);
+  };
+  const auto started = std::chrono::steady_clock::now();
   auto exported = ConvertForExport(path, request);
   if (!exported.ok()) return ReportError("export", exported.error());
+  const double convert_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   const ReflectanceModel* model = exported->model.get();
   if (exported->as_stored) {
     // Its files, byte for byte (saving again would compress the planes a second time).
@@ -143,7 +150,7 @@ int RunExport(int argc, char** argv) {
   if (!back.ok()) return ReportError("export", back.error());
   std::printf("rig export: wrote %s (%s, %dx%d)\n", a.out.c_str(), what.c_str(), c.width, c.height);
   std::printf("  from %s: %s\n", path.c_str(), model->Describe().c_str());
-  std::printf("  %s\n", conversion->how.c_str());
+  std::printf("  %s (%.1f s)\n", conversion->how.c_str(), convert_s);
   if (conversion->exact) {
     std::printf("  held exactly before quantisation (%s over %d lights)\n",
                 Db(conversion->psnr_db).c_str(), conversion->lights);

@@ -107,6 +107,32 @@ TEST(ExportCommand, RefitsPrintThePsnrLostAndLrgbIsAVariant) {
   EXPECT_EQ(fmt, "PTM_FORMAT_LRGB");
 }
 
+// The default model of a real capture into RTIViewer's formats: the export says what it is
+// about to do and what the target's basis cannot hold before it starts, and a refit rendered on
+// several threads writes the same bytes every run.
+TEST(ExportCommand, ARefitSaysWhatItWillLoseFirstAndWritesTheSameFileEveryRun) {
+  const std::string lp = testing::SharedDir() + "/data/rti/neuralrti-example/dirs.lp";
+  if (!fs::exists(lp)) GTEST_SKIP() << lp << " is absent";
+  const std::string dir = testing::FreshTempDir("export-cmd-plan");
+  auto r = RunRig("fit --lp " + lp + " --downsample 2 --out " + dir + "/pca");
+  ASSERT_EQ(r.status, 0) << r.output;
+  std::string bytes[2];
+  for (int i = 0; i < 2; ++i) {
+    const std::string out = dir + "/m" + std::to_string(i) + ".ptm";
+    r = RunRig("export " + dir + "/pca --format ptm --out " + out);
+    ASSERT_EQ(r.status, 0) << r.output;
+    const size_t plan = r.output.find("what the pca-bilinear model holds beyond that");
+    const size_t wrote = r.output.find("rig export: wrote");
+    ASSERT_NE(plan, std::string::npos) << r.output;
+    EXPECT_LT(plan, wrote) << r.output;
+    EXPECT_THAT(r.output, HasSubstr("PTM rgb (6 terms per channel) holds a biquadratic"));
+    EXPECT_THAT(r.output, HasSubstr("as written, read back: "));
+    bytes[i] = testing::ReadText(out);
+  }
+  EXPECT_FALSE(bytes[0].empty());
+  EXPECT_TRUE(bytes[0] == bytes[1]) << "two exports of one model differ";
+}
+
 TEST(ExportCommand, RefusesExistingOutputAndBadFilesNamingThem) {
   const std::string dir = testing::FreshTempDir("export-cmd-bad");
   const std::string ptm = WriteModel(dir, BasisKind::kPtm, 2, FitSpace::kSrgb);

@@ -1227,6 +1227,9 @@ class PcaFamily final : public ReflectanceModel {
     }
     return v;
   }
+  cv::Mat EvaluateEncoded(const Vec3& d) const override {
+    return m_.hdr() ? EvaluateRho(d) : m_.Render(d);  // a photographs' model holds code values
+  }
   RegionCheck CheckRegion(const Vec3& d) const override {
     return CheckAgainstLamps(m_.lights(), spacing_deg_, d);
   }
