@@ -54,11 +54,20 @@ double DisplayGain(const ReflectanceModel& m, const std::vector<Vec3>& lights) {
 
 // fn(i) for i in [0, n) on up to `hardware_concurrency` threads (renders are const and
 // independent); fn must guard whatever it shares.
-void ForEachLight(size_t n, const std::function<void(size_t)>& fn) {
+void ForEachLight(size_t n, const std::function<void(size_t)>& fn, const LightProgress& progress = {},
+                  const char* stage = "") {
   const size_t threads = std::clamp<size_t>(std::thread::hardware_concurrency(), 1, 8);
   std::atomic<size_t> next{0};
+  std::mutex told;
+  size_t done = 0;
   auto work = [&] {
-    for (size_t i = next++; i < n; i = next++) fn(i);
+    for (size_t i = next++; i < n; i = next++) {
+      fn(i);
+      if (progress) {
+        const std::lock_guard<std::mutex> lock(told);
+        progress(stage, ++done, n);
+      }
+    }
   };
   std::vector<std::thread> pool;
   for (size_t t = 1; t < std::min(threads, n); ++t) pool.emplace_back(work);
@@ -67,9 +76,10 @@ void ForEachLight(size_t n, const std::function<void(size_t)>& fn) {
 }
 
 // Σ over lights of f(light), summed in light order whatever thread ran it (reproducible).
-double SumOverLights(const std::vector<Vec3>& lights, const std::function<double(const Vec3&)>& f) {
+double SumOverLights(const std::vector<Vec3>& lights, const std::function<double(const Vec3&)>& f,
+                     const LightProgress& progress = {}) {
   std::vector<double> each(lights.size(), 0);
-  ForEachLight(lights.size(), [&](size_t i) { each[i] = f(lights[i]); });
+  ForEachLight(lights.size(), [&](size_t i) { each[i] = f(lights[i]); }, progress, "measuring the error");
   double sum = 0;
   for (double v : each) sum += v;
   return sum;
@@ -127,7 +137,8 @@ Status CheckTarget(const RelightTarget& t) {
 
 // Least squares of the model's values at `lights` onto the target's rgb terms.
 Result<RelightCoefficients> Refit(const ReflectanceModel& m, RelightTarget t,
-                                  const std::vector<Vec3>& lights, double gain) {
+                                  const std::vector<Vec3>& lights, double gain,
+                                  const LightProgress& progress) {
   const Eigen::MatrixXd w = RelightDesign(t.type, t.terms, lights);
   if (lights.size() < static_cast<size_t>(t.terms)) {
     return MakeError(ErrorCode::kInvalidInput, "export",
@@ -159,7 +170,7 @@ Result<RelightCoefficients> Refit(const ReflectanceModel& m, RelightTarget t,
       cv::scaleAdd(v, p(j, static_cast<Eigen::Index>(i)), c.planes[j], c.planes[j]);
     ++next_to_add;
     turn.notify_all();
-  });
+  }, progress, "refitting");
   return c;
 }
 
@@ -198,10 +209,10 @@ RelightCoefficients FactoriseLrgb(const RelightCoefficients& rgb, const std::vec
 namespace {
 
 double PsnrAt(const ReflectanceModel& source, const RelightCoefficients& c,
-              const std::vector<Vec3>& lights, double gain) {
+              const std::vector<Vec3>& lights, double gain, const LightProgress& progress) {
   const double sse = SumOverLights(lights, [&](const Vec3& l) {
     return SquaredError(EncodedValues(source, l, gain), RenderRelight(c, l));
-  });
+  }, progress);
   return PsnrFromSse(sse, 3.0 * c.width * c.height * static_cast<double>(lights.size()));
 }
 
@@ -215,7 +226,8 @@ void ZeroFlagged(const cv::Mat& valid, RelightCoefficients* c) {
 // The rest of a conversion once rgb coefficients are there: lrgb, the PSNR, the summary.
 Result<Conversion> Finish(const ReflectanceModel& source, RelightCoefficients rgb,
                           const RelightTarget& target, const std::vector<Vec3>& lights,
-                          bool exact, std::string how, double residual, double gain = 1) {
+                          bool exact, std::string how, double residual, double gain,
+                          const LightProgress& progress) {
   Conversion out;
   out.gain = gain;
   out.exact = exact && !target.lrgb;
@@ -228,7 +240,7 @@ Result<Conversion> Finish(const ReflectanceModel& source, RelightCoefficients rg
     out.coefficients = std::move(rgb);
   }
   ZeroFlagged(source.valid(), &out.coefficients);
-  out.psnr_db = PsnrAt(source, out.coefficients, lights, gain);
+  out.psnr_db = PsnrAt(source, out.coefficients, lights, gain, progress);
   out.lights = static_cast<int>(lights.size());
   out.how = std::move(how);
   return out;
@@ -236,7 +248,8 @@ Result<Conversion> Finish(const ReflectanceModel& source, RelightCoefficients rg
 
 }  // namespace
 
-Result<Conversion> ConvertToRelight(const Model& model, const RelightTarget& target) {
+Result<Conversion> ConvertToRelight(const Model& model, const RelightTarget& target,
+                                    const LightProgress& progress) {
   RIG_TRY(CheckTarget(target));
   const auto wrapped = WrapHarmonic(model);
   const std::vector<Vec3> lights =
@@ -275,11 +288,11 @@ Result<Conversion> ConvertToRelight(const Model& model, const RelightTarget& tar
         how += fmt::format(", {} of them at the horizon, where relight clamps theta at pi/2 - 0.01",
                            grazing);
       }
-      return Finish(*wrapped, std::move(c), target, lights, true, std::move(how), residual);
+      return Finish(*wrapped, std::move(c), target, lights, true, std::move(how), residual, 1, progress);
     }
   }
   const double gain = srgb ? 1.0 : DisplayGain(*wrapped, lights);
-  RIG_ASSIGN_OR_RETURN(RelightCoefficients c, Refit(*wrapped, target, lights, gain));
+  RIG_ASSIGN_OR_RETURN(RelightCoefficients c, Refit(*wrapped, target, lights, gain, progress));
   c.lights = model.info().lamp_directions;
   std::string how = fmt::format("{} order {} ({} fit space) refitted onto relight's {} {} terms by "
                                 "least squares at {} {}",
@@ -289,11 +302,11 @@ Result<Conversion> ConvertToRelight(const Model& model, const RelightTarget& tar
   if (gain != 1) {
     how += fmt::format("; rho scaled by {:.4g} (its 99.5th percentile at those lights is white)", gain);
   }
-  return Finish(*wrapped, std::move(c), target, lights, false, std::move(how), 0, gain);
+  return Finish(*wrapped, std::move(c), target, lights, false, std::move(how), 0, gain, progress);
 }
 
 Result<Conversion> ConvertToRelight(const ReflectanceModel& model, const RelightTarget& target,
-                                    std::vector<Vec3> lights) {
+                                    std::vector<Vec3> lights, const LightProgress& progress) {
   RIG_TRY(CheckTarget(target));
   const RelightCoefficients* rc = RelightCoefficientsOf(model);
   if (lights.empty() && rc) lights = rc->lights;
@@ -322,10 +335,10 @@ Result<Conversion> ConvertToRelight(const ReflectanceModel& model, const Relight
       }
       c.lights = rc->lights;
       return Finish(model, std::move(c), target, lights, true,
-                    "ptm lrgb expanded exactly into rgb (coefficient x albedo / 255)", 0);
+                    "ptm lrgb expanded exactly into rgb (coefficient x albedo / 255)", 0, 1, progress);
     }
     // rgb PTM to lrgb: factorised below, from the coefficients themselves.
-    return Finish(model, *rc, target, lights, false, "ptm rgb", 0);
+    return Finish(model, *rc, target, lights, false, "ptm rgb", 0, 1, progress);
   }
   // A model of radiance maps (linear ρ, relative to the capture lamp) is scaled to display
   // values as a harmonic session's model is; a photographs' model holds display values.
@@ -334,7 +347,7 @@ Result<Conversion> ConvertToRelight(const ReflectanceModel& model, const Relight
   const std::vector<Vec3> fitted = model.fitted_lights();
   if (linear && !fitted.empty()) lights = fitted;
   const double gain = linear ? DisplayGain(model, lights) : 1.0;
-  RIG_ASSIGN_OR_RETURN(RelightCoefficients c, Refit(model, target, lights, gain));
+  RIG_ASSIGN_OR_RETURN(RelightCoefficients c, Refit(model, target, lights, gain, progress));
   c.lights = rc ? rc->lights : std::vector<Vec3>{};
   if (linear && !fitted.empty()) c.lights = fitted;
   std::string how = fmt::format("{} refitted onto relight's {} {} terms by least squares at {} {}",
@@ -343,14 +356,15 @@ Result<Conversion> ConvertToRelight(const ReflectanceModel& model, const Relight
   if (gain != 1) {
     how += fmt::format("; rho scaled by {:.4g} (its 99.5th percentile at those lights is white)", gain);
   }
-  return Finish(model, std::move(c), target, lights, false, std::move(how), 0, gain);
+  return Finish(model, std::move(c), target, lights, false, std::move(how), 0, gain, progress);
 }
 
 double RenderPsnrDb(const ReflectanceModel& a, const ReflectanceModel& b,
-                    const std::vector<Vec3>& directions, double gain_a) {
+                    const std::vector<Vec3>& directions, double gain_a,
+                    const LightProgress& progress) {
   const double sse = SumOverLights(directions, [&](const Vec3& d) {
     return SquaredError(EncodedValues(a, d, gain_a), EncodedValues(b, d));
-  });
+  }, progress);
   return PsnrFromSse(sse, 3.0 * a.width() * a.height() * static_cast<double>(directions.size()));
 }
 

@@ -5,6 +5,8 @@
 // and the result's, so nothing different is ever written silently.
 #pragma once
 
+#include <cstddef>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -17,7 +19,7 @@ namespace rig {
 
 struct RelightTarget {
   RelightType type = RelightType::kPtm;
-  int terms = 6;      // ptm: 6; hsh: 9 or 4
+  int terms = 6;      // ptm: 6; hsh: 9 or 4 (16: a .rti's third order)
   bool lrgb = false;  // ptm only: luminance PTM × per-pixel RGB albedo
 };
 
@@ -34,15 +36,21 @@ struct Conversion {
   std::string how;         // one line: what was done
 };
 
+// Told how far a stage over lights has come ("refitting", "measuring the error"): done of
+// total lights. Called from any of the threads, one call at a time.
+using LightProgress = std::function<void(const char* stage, size_t done, size_t total)>;
+
 // A harmonic model. Lights: the model's sampled lamps (ModelInfo::lamp_directions), the upper
 // hemisphere when it has none. Flagged pixels get zero coefficients (they render 0, as ours).
-Result<Conversion> ConvertToRelight(const Model& model, const RelightTarget& target);
+Result<Conversion> ConvertToRelight(const Model& model, const RelightTarget& target,
+                                    const LightProgress& progress = {});
 
 // Any model: a relight-basis model (WrapRelight) is copied or mapped exactly where it can be
 // (same basis; lrgb to rgb), any other is refitted at `lights` (empty: its fitted lights when
 // it carries them, else the hemisphere directions its CheckRegion calls inside).
 Result<Conversion> ConvertToRelight(const ReflectanceModel& model, const RelightTarget& target,
-                                    std::vector<Vec3> lights = {});
+                                    std::vector<Vec3> lights = {},
+                                    const LightProgress& progress = {});
 
 // A luminance PTM times a per-pixel RGB albedo from an rgb PTM, by least squares over
 // `lights`: luminance a = the mean of the channels' polynomials; albedo ρ_c = aᵀGc_c / aᵀGa
@@ -52,6 +60,7 @@ RelightCoefficients FactoriseLrgb(const RelightCoefficients& rgb, const std::vec
 // 8-bit sRGB PSNR of two models' renders over directions (both clamped to 0..255), a's ρ
 // scaled by gain_a first (Conversion::gain).
 double RenderPsnrDb(const ReflectanceModel& a, const ReflectanceModel& b,
-                    const std::vector<Vec3>& directions, double gain_a = 1);
+                    const std::vector<Vec3>& directions, double gain_a = 1,
+                    const LightProgress& progress = {});
 
 }  // namespace rig

@@ -148,7 +148,7 @@ Result<ExportSource> ConvertForExport(const std::string& path, const ExportReque
     RIG_ASSIGN_OR_RETURN(Model m, LoadModel(path));
     RIG_ASSIGN_OR_RETURN(RelightTarget target, ExportTarget(request, m.basis().name(), m.basis().size()));
     if (request.announce) request.announce(ExportPlan(m.basis().name(), m.basis().size(), target, true));
-    conversion = ConvertToRelight(m, target);
+    conversion = ConvertToRelight(m, target, request.progress);
     s.model = WrapHarmonic(std::move(m));
   } else {
     RIG_ASSIGN_OR_RETURN(s.model, LoadAnyModel(path));
@@ -165,7 +165,7 @@ Result<ExportSource> ConvertForExport(const std::string& path, const ExportReque
     RIG_ASSIGN_OR_RETURN(RelightTarget target,
                          ExportTarget(request, s.model->family(), rc ? rc->terms : 0));
     if (request.announce) request.announce(ExportPlan(s.model->family(), rc ? rc->terms : 0, target, false));
-    conversion = ConvertToRelight(*s.model, target);
+    conversion = ConvertToRelight(*s.model, target, {}, request.progress);
   }
   if (!conversion.ok()) return conversion.error();
   s.conversion = std::move(*conversion);

@@ -25,6 +25,7 @@ struct ExportRequest {
   bool jpeg_rgb = false;       // relight: planes in the JPEG RGB colour space
   // Told, before the conversion starts, what it will do and what the target cannot hold.
   std::function<void(const std::string&)> announce;
+  LightProgress progress;  // the conversion's stages over lights
 };
 
 // One sentence before a conversion: the model's family onto the target, and what the target's

@@ -129,6 +129,16 @@ int RunExport(int argc, char** argv) {
     std::fflush(stdout);
   };
   const auto started = std::chrono::steady_clock::now();
+  // A line at most every 2 s: which stage, how far.
+  auto last_told = started;
+  request.progress = [&, last_told](const char* stage, size_t done, size_t total) mutable {
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last_told < std::chrono::seconds(2)) return;
+    last_told = now;
+    std::printf("  %s: %zu of %zu lights, %.1f s\n", stage, done, total,
+                std::chrono::duration<double>(now - started).count());
+    std::fflush(stdout);
+  };
   auto exported = ConvertForExport(path, request);
   if (!exported.ok()) return ReportError("export", exported.error());
   const double convert_s =
@@ -162,8 +172,9 @@ int RunExport(int argc, char** argv) {
   // The whole loss: what a reader of the file renders against the source, at the same lights.
   std::vector<Vec3> lights = c.lights.empty() ? HemisphereDirections() : c.lights;
   const auto reread = WrapRelight(std::move(*back), a.out);
+  const double back_db = RenderPsnrDb(*model, *reread, lights, conversion->gain, request.progress);
   std::printf("  as written, read back: %s PSNR against the source over %zu lights (8-bit sRGB)\n",
-              Db(RenderPsnrDb(*model, *reread, lights, conversion->gain)).c_str(), lights.size());
+              Db(back_db).c_str(), lights.size());
   for (const std::string& note : ExportNotes(request, *model, *conversion))
     std::printf("  note: %s\n", note.c_str());
   if (a.format == "relight") return WriteTilesIfWanted(a, c.width, c.height);
