@@ -176,14 +176,28 @@ Status HttpServer::Start() {
     port_ = options_.port;
   }
   static_cast<ListeningServer&>(*server_).WidenBacklog();
-  thread_ = std::thread([this] { server_->listen_after_bind(); });
+  thread_ = std::thread([this] {
+    server_->listen_after_bind();
+    listen_ended_ = true;
+  });
+  WaitUntilListening();
   Log("rig")->info("daemon listening url=http://{}:{}/ token={}", options_.host, port_,
                    options_.token.empty() ? "none" : "required");
   return Ok();
 }
 
+// cpp-httplib's stop() does nothing until its loop has marked itself running (0.11: is_running_
+// is set inside listen_after_bind), so a Stop right after Start would leave the loop running
+// and the join waiting forever: the loop is waited for first.
+void HttpServer::WaitUntilListening() {
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (!server_->is_running() && !listen_ended_ && std::chrono::steady_clock::now() < until)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+}
+
 void HttpServer::Stop() {
   stopping_ = true;
+  if (server_ && thread_.joinable()) WaitUntilListening();
   if (server_) server_->stop();
   if (thread_.joinable()) thread_.join();
   guard_ = nullptr;  // cpp-httplib deleted it when listening ended

@@ -84,6 +84,7 @@ class HttpServer {
   void Stop();
 
  private:
+  void WaitUntilListening();
   void Routes();
   void PageRoutes();
   void ApiRoutes();
@@ -95,6 +96,7 @@ class HttpServer {
   std::atomic<ConnectionGuard*> guard_{nullptr};
   std::unique_ptr<httplib::Server> server_;
   std::thread thread_;
+  std::atomic<bool> listen_ended_{false};  // listen_after_bind returned
   std::atomic<bool> stopping_{false};
   std::atomic<size_t> refused_{0};
   int port_ = 0;

@@ -168,10 +168,12 @@ int main(int argc, char** argv) {
   const auto ptm_lrgb = Take(rig::ConvertToRelight(*ptm, {rig::RelightType::kPtm, 6, true}), "ptm lrgb");
   const auto hsh9 = Take(rig::ConvertToRelight(*hsh, {rig::RelightType::kHsh, 9, false}), "hsh 9");
   const auto hsh4 = Take(rig::ConvertToRelight(*hsh, {rig::RelightType::kHsh, 4, false}), "hsh 4");
+  const auto hsh16 = Take(rig::ConvertToRelight(*hsh, {rig::RelightType::kHsh, 16, false}), "hsh 16");
   Check(rig::WritePtm((out / "ptm/rgb.ptm").string(), ptm_rgb.coefficients), "ptm");
   Check(rig::WritePtm((out / "ptm/lrgb.ptm").string(), ptm_lrgb.coefficients), "ptm");
   Check(rig::WriteRti((out / "rti/hsh9.rti").string(), hsh9.coefficients), "rti");
   Check(rig::WriteRti((out / "rti/hsh4.rti").string(), hsh4.coefficients), "rti");
+  Check(rig::WriteRti((out / "rti/hsh16.rti").string(), hsh16.coefficients), "rti");
 
   auto web = [&](const char* name, const rig::RelightCoefficients& c, bool ycbcr) {
     const fs::path folder = scratch / "web" / name;
