@@ -89,7 +89,8 @@ Status ConvertForView(const std::string& path, const std::string& ext, int quali
       target.lrgb = rc->lrgb;
       lights = rc->lights;
       // relight's JS viewer has no sh weights: the page shows the model refitted as hsh.
-      if (rc->type == RelightType::kSh) {
+      // Nor weights past 9 HSH terms: a .rti of RTIViewer's third order is shown refitted to 9.
+      if (rc->type == RelightType::kSh || rc->terms > 9) {
         target.type = RelightType::kHsh;
         target.terms = 9;
       }
