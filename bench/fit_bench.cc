@@ -434,7 +434,7 @@ int main(int argc, char** argv) {
       o.threads = 2;
       if (with_pca && !PcaLastFrame(store, keys, in, folder, mp, scene)) return 1;
       for (const std::string& compression : (with_sh ? compressions : std::vector<std::string>{})) {
-        in.compression = *rig::ParseExrCompression(compression);
+        in.compression = *rig::ParseExrCompression(compression, /*lossy=*/true);
         const std::string from_memory = (folder / "memory.exr").string(), from_files = (folder / "files.exr").string();
         // The maps' files written just now are still being written back to the disk; in a
         // session they were written over minutes of capture. Let the disk catch up first, so

@@ -8,7 +8,7 @@
 // lamp, on always-lit ones; bytes per pixel on disk; fit time.
 //
 //   build/bench/hdr_model_bench [--dir /tmp/hdr_model_bench] [--width 320 --height 240]
-//       [--config FILE] [--sh 2,3,4,5,6] [--pca K:R:Q,...] [--curves log,srgb,power1.25]
+//       [--config FILE] [--sh 2,3,4,5,6] [--sh-compressions none,dwaa,dwab] [--pca K:R:Q,...] [--curves log,srgb,power1.25]
 //       [--auto-budgets 30] [--neural 9,...] [--high 0.9999] [--smoothness S] [--no-auto]
 //       [--threads 2] [--fresh]
 //
@@ -85,6 +85,7 @@ struct Args {
   std::string config;
   int width = 0, height = 0;  // 0: the config's
   std::vector<int> sh = {2, 3, 4, 5, 6};
+  std::vector<std::string> sh_compressions = {"none"};
   std::vector<std::array<int, 3>> pca = {{9, 16, 85}, {12, 24, 85}, {18, 32, 95}};
   std::vector<std::string> curves = {"log", "srgb"};
   std::vector<double> budgets = {30};
@@ -116,6 +117,8 @@ Args ParseArgs(int argc, char** argv) {
     else if (k == "--sh") {
       a.sh.clear();
       for (const auto& s : Split(next(), ',')) a.sh.push_back(std::stoi(s));
+    } else if (k == "--sh-compressions") {
+      a.sh_compressions = Split(next(), ',');
     } else if (k == "--pca") {
       a.pca.clear();
       for (const auto& s : Split(next(), ',')) {
@@ -387,12 +390,17 @@ void HarmonicRows(const Args& a, const Reference& ref) {
   in.compression = rig::ExrCompression::kNone;
   rig::FitOptions o = Must(rig::FitOptionsFromConfig(ref.config.process));
   o.threads = a.threads;
-  for (int order : a.sh) {
-    o.order = order;
-    const std::string out = (a.dir / fmt::format("sh{}.exr", order)).string();
-    const auto t = Clock::now();
-    Must(rig::FitModelStreaming(in, o, out, rig::ExrPixelType::kHalf));
-    Row(fmt::format("sh order {} ({} terms), half", order, (order + 1) * (order + 1)), out, Seconds(t), ref);
+  for (const std::string& name : a.sh_compressions) {
+    in.compression = Must(rig::ParseExrCompression(name, /*lossy=*/true));
+    for (int order : a.sh) {
+      o.order = order;
+      const std::string out = (a.dir / fmt::format("sh{}_{}.exr", order, name)).string();
+      const auto t = Clock::now();
+      Must(rig::FitModelStreaming(in, o, out, rig::ExrPixelType::kHalf));
+      Row(fmt::format("sh order {} ({} terms), half{}", order, (order + 1) * (order + 1),
+                      name == "none" ? std::string() : ", " + name),
+          out, Seconds(t), ref);
+    }
   }
 }
 

@@ -465,8 +465,9 @@ void VisitProcessSection(Config& c, V& v) {
   v.Field("max_condition_number", p.max_condition_number, Range{1, 1e300});
   v.Field("fit_space", p.fit_space, {"linear", "srgb", "log"});
   v.Field("model_pixel_type", p.model_pixel_type, {"half", "float"});
+  // ExrModelCompressionNames(): the same, and the lossy ones a model file may use.
   v.Field("model_compression", p.model_compression,
-          {"none", "rle", "zips", "zip", "zip-fast", "piz"});
+          {"none", "rle", "zips", "zip", "zip-fast", "piz", "dwaa", "dwab"});
   v.Field("reference_patch_px", p.reference_patch_px, Range{0, 1e6});
   v.Field("reference_reflectance", p.reference_reflectance, Range{1e-3, 1});
   v.Field("field_of_view_deg", p.field_of_view_deg, Range{0.1, 360});

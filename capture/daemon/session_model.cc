@@ -209,7 +209,7 @@ Status FitSessionModel(const Session& session, const MapStore* maps) {
   }
   if (family == "pca") return FitSessionPca(session, *bands, in, source, choice.get());
   options.threads = config.process.threads;
-  in.compression = *ParseExrCompression(config.process.model_compression);  // validated on load
+  in.compression = *ParseExrCompression(config.process.model_compression, /*lossy=*/true);  // validated on load
   // model/ inside the session, never through a link.
   RIG_ASSIGN_OR_RETURN(fs::path model_dir, EnsureSessionFolder(layout.root, "model"));
   fs::path out = model_dir / "model.exr";

@@ -133,6 +133,8 @@ Imf::Compression ToImf(ExrCompression c) {
     case ExrCompression::kZip: return Imf::ZIP_COMPRESSION;
     case ExrCompression::kZipFast: return Imf::ZIP_COMPRESSION;
     case ExrCompression::kPiz: return Imf::PIZ_COMPRESSION;
+    case ExrCompression::kDwaa: return Imf::DWAA_COMPRESSION;
+    case ExrCompression::kDwab: return Imf::DWAB_COMPRESSION;
   }
   return Imf::ZIP_COMPRESSION;
 }
@@ -140,6 +142,7 @@ Imf::Compression ToImf(ExrCompression c) {
 constexpr ExrCompression kAllCompressions[] = {ExrCompression::kNone, ExrCompression::kRle,
                                                ExrCompression::kZips, ExrCompression::kZip,
                                                ExrCompression::kZipFast, ExrCompression::kPiz};
+constexpr ExrCompression kLossyCompressions[] = {ExrCompression::kDwaa, ExrCompression::kDwab};
 
 }  // namespace
 
@@ -153,12 +156,19 @@ const char* ExrCompressionName(ExrCompression c) {
     case ExrCompression::kZip: return "zip";
     case ExrCompression::kZipFast: return "zip-fast";
     case ExrCompression::kPiz: return "piz";
+    case ExrCompression::kDwaa: return "dwaa";
+    case ExrCompression::kDwab: return "dwab";
   }
   return "?";
 }
 
+bool ExrCompressionIsLossy(ExrCompression c) {
+  return c == ExrCompression::kDwaa || c == ExrCompression::kDwab;
+}
+
 ExrCompressionCode ExrCompressionCodeOf(ExrCompression c) {
-  return {static_cast<int>(ToImf(c)), c == ExrCompression::kZipFast ? 1 : 0};
+  return {static_cast<int>(ToImf(c)), c == ExrCompression::kZipFast ? 1 : 0,
+          ExrCompressionIsLossy(c) ? kExrDwaLevel : 0.0f};
 }
 
 const std::vector<std::string>& ExrCompressionNames() {
@@ -170,12 +180,27 @@ const std::vector<std::string>& ExrCompressionNames() {
   return names;
 }
 
-Result<ExrCompression> ParseExrCompression(const std::string& name) {
+const std::vector<std::string>& ExrModelCompressionNames() {
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> v = ExrCompressionNames();
+    for (ExrCompression c : kLossyCompressions) v.push_back(ExrCompressionName(c));
+    return v;
+  }();
+  return names;
+}
+
+Result<ExrCompression> ParseExrCompression(const std::string& name, bool lossy) {
   for (ExrCompression c : kAllCompressions) {
     if (name == ExrCompressionName(c)) return c;
   }
+  if (lossy) {
+    for (ExrCompression c : kLossyCompressions) {
+      if (name == ExrCompressionName(c)) return c;
+    }
+  }
   std::string choices;
-  for (const auto& n : ExrCompressionNames()) choices += (choices.empty() ? "" : ", ") + n;
+  for (const auto& n : lossy ? ExrModelCompressionNames() : ExrCompressionNames())
+    choices += (choices.empty() ? "" : ", ") + n;
   return MakeError(ErrorCode::kInvalidInput, "", "EXR compression '{}' (expected one of {})", name,
                    choices);
 }
@@ -203,6 +228,7 @@ Status WriteExrStriped(const std::string& path, int width, int height,
     // zlib's level 1 against OpenEXR's 6: a shorter search for matches. On float radiance it
     // saves only 10-15%: the time goes into coding the noisy low bytes (docs/hdr.md).
     if (compression == ExrCompression::kZipFast) header.zipCompressionLevel() = 1;
+    if (ExrCompressionIsLossy(compression)) header.dwaCompressionLevel() = kExrDwaLevel;
     const Imf::PixelType pixel = type == ExrPixelType::kHalf ? Imf::HALF : Imf::FLOAT;
     for (const auto& name : channel_names) header.channels().insert(name, Imf::Channel(pixel));
     for (const auto& [key, value] : attributes) {

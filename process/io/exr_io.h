@@ -18,9 +18,9 @@ namespace rig {
 
 enum class ExrPixelType { kHalf, kFloat };
 
-// How the pixels are compressed in the file; every choice is lossless (docs/hdr.md has their
-// size and speed on a 6 MP radiance map). OpenEXR compresses blocks of lines independently,
-// on its thread pool (the `threads` of the writers below).
+// How the pixels are compressed in the file (docs/hdr.md has the lossless ones' size and speed
+// on a 6 MP radiance map; docs/model.md the lossy ones' on model files). OpenEXR compresses
+// blocks of lines independently, on its thread pool (the `threads` of the writers below).
 enum class ExrCompression {
   kNone,     // raw: the fastest to write and read, the largest file
   kRle,      // run lengths: fast; shrinks the flags channel, float radiance barely
@@ -28,19 +28,30 @@ enum class ExrCompression {
   kZip,      // zlib per 16 lines (OpenEXR's level 6): small, slow to write
   kZipFast,  // ZIP at zlib level 1: on float radiance only 10-15% faster, 1% larger
   kPiz,      // wavelet + Huffman per 32 lines: the smallest on the measured maps
+  // Lossy, for model files only (never a capture's radiance maps): OpenEXR's DWA codec, a DCT
+  // of 8x8 blocks of half channels named R, G, B (after the last '.') at quantisation level 45,
+  // other channels (a model's 'valid') losslessly; per 32 lines (dwaa) or 256 (dwab).
+  kDwaa,
+  kDwab,
 };
-// "none" | "rle" | "zips" | "zip" | "zip-fast" | "piz"; an unknown name is an error that lists
-// the choices.
-Result<ExrCompression> ParseExrCompression(const std::string& name);
+// "none" | "rle" | "zips" | "zip" | "zip-fast" | "piz", and with `lossy` also "dwaa" | "dwab";
+// an unknown name is an error that lists the choices.
+Result<ExrCompression> ParseExrCompression(const std::string& name, bool lossy = false);
 const char* ExrCompressionName(ExrCompression c);
-// The names ParseExrCompression accepts, in the order above.
+bool ExrCompressionIsLossy(ExrCompression c);
+// The lossless names ParseExrCompression accepts, in the order above.
 const std::vector<std::string>& ExrCompressionNames();
-// For writers that build their own OpenEXR header: the Imf::Compression value of a choice, and
-// the zlib level to set (0: OpenEXR's default).
+// The same followed by the lossy ones: what a model file may be written with.
+const std::vector<std::string>& ExrModelCompressionNames();
+// For writers that build their own OpenEXR header: the Imf::Compression value of a choice, the
+// zlib level to set (0: OpenEXR's default) and the DWA level (0: none).
 struct ExrCompressionCode {
   int imf_compression = 0;
   int zip_level = 0;
+  float dwa_level = 0;
 };
+// The DWA quantisation level rig writes (OpenEXR's default, 45: "visually lossless" for images).
+inline constexpr float kExrDwaLevel = 45.0f;
 ExrCompressionCode ExrCompressionCodeOf(ExrCompression c);
 
 // What ReadExr accepts before allocating (docs/robustness.md); larger files are refused as

@@ -193,8 +193,10 @@ TEST(Config, InvalidChoiceListsChoicesAndSuggests) {
 // The session's EXR compressions (radiance maps, model): config (below process) keeps its own
 // list of names; every name the writer knows is accepted, and nothing else.
 TEST(Config, HdrAndModelCompressionAcceptExactlyTheWritersNames) {
+  // Radiance maps are kept losslessly; a model file may also be written with the lossy DWA.
   for (const std::string key : {"hdr_compression", "model_compression"}) {
-    for (const std::string& name : ExrCompressionNames()) {
+    const auto& names = key == "hdr_compression" ? ExrCompressionNames() : ExrModelCompressionNames();
+    for (const std::string& name : names) {
       ConfigResult r = ParseConfig(std::string(kMinimal) + "\n[process]\n" + key + " = \"" +
                                        name + "\"\n", "t.toml");
       ASSERT_TRUE(r.ok()) << key << " " << name << ": " << r.AsError().ToString();
@@ -206,9 +208,11 @@ TEST(Config, HdrAndModelCompressionAcceptExactlyTheWritersNames) {
                               "t.toml"),
                   "process." + key);
     std::string listed;
-    for (const std::string& name : ExrCompressionNames()) listed += (listed.empty() ? "" : ", ") + name;
+    for (const std::string& name : names) listed += (listed.empty() ? "" : ", ") + name;
     EXPECT_THAT(d.message, HasSubstr("not one of: " + listed));
   }
+  EXPECT_FALSE(
+      ParseConfig(std::string(kMinimal) + "\n[process]\nhdr_compression = \"dwaa\"\n", "t.toml").ok());
   const Config defaults = ParseConfig(kMinimal, "t.toml").config;
   EXPECT_EQ(defaults.process.hdr_compression, "zip");
   EXPECT_EQ(defaults.process.model_compression, "none");

@@ -1,6 +1,7 @@
 // Tests of process/exr_io: round trips (half, float), attributes, errors naming the file.
 #include "process/io/exr_io.h"
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -129,6 +130,92 @@ TEST(ExrIo, UnknownCompressionIsAnErrorListingTheChoices) {
   EXPECT_THAT(c.error().ToString(), ::testing::HasSubstr("'lzw'"));
   EXPECT_THAT(c.error().ToString(),
               ::testing::HasSubstr("none, rle, zips, zip, zip-fast, piz"));
+}
+
+// DWA, the lossy codec a model file may use: named only where lossy is asked for; the file says
+// DWAA/DWAB; a model's half coefficient planes come back close (not exactly), its 'valid' plane
+// exactly (DWA codes only channels named R, G, B), and the file is smaller than uncompressed.
+TEST(ExrIo, DwaIsLossyForModelPlanesOnlyWhenAskedAndKeepsTheValidPlaneExact) {
+  for (const char* name : {"dwaa", "dwab"}) {
+    auto refused = ParseExrCompression(name);
+    ASSERT_FALSE(refused.ok()) << name;
+    EXPECT_THAT(refused.error().ToString(),
+                ::testing::HasSubstr("(expected one of none, rle, zips, zip, zip-fast, piz)"));
+    auto c = ParseExrCompression(name, /*lossy=*/true);
+    ASSERT_TRUE(c.ok()) << name;
+    EXPECT_TRUE(ExrCompressionIsLossy(*c));
+  }
+  EXPECT_THAT(ParseExrCompression("lzw", true).error().ToString(),
+              ::testing::HasSubstr("none, rle, zips, zip, zip-fast, piz, dwaa, dwab"));
+  for (const std::string& name : ExrCompressionNames())
+    EXPECT_FALSE(ExrCompressionIsLossy(*ParseExrCompression(name))) << name;
+
+  fs::path dir = TempDir();
+  const int w = 96, h = 64;
+  ExrImage img;
+  img.width = w;
+  img.height = h;
+  cv::Mat valid(h, w, CV_32FC1);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) valid.at<float>(y, x) = ((x * 7 + y * 3) % 5) != 0 ? 1.f : 0.f;
+  for (int k = 0; k < 4; ++k) {
+    for (const char* ch : {"R", "G", "B"}) {
+      // A smooth coefficient field over two decades, as a model's planes are across a scene.
+      cv::Mat m(h, w, CV_32FC1);
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x)
+          m.at<float>(y, x) = static_cast<float>((0.05 + 0.9 * (x + y) / (w + h)) *
+                                                 std::pow(0.3, k) * (1 + 0.2 * std::sin(0.2 * x)));
+      img.channel_names.push_back("c0" + std::to_string(k) + "." + ch);
+      img.channels.push_back(m);
+    }
+  }
+  img.channel_names.push_back("valid");
+  img.channels.push_back(valid);
+  std::map<std::string, uintmax_t> size;
+  for (const std::string name : {"none", "dwaa", "dwab"}) {
+    const std::string path = (dir / (name + ".exr")).string();
+    auto c = ParseExrCompression(name, true);
+    ASSERT_TRUE(c.ok());
+    auto wr = WriteExr(path, img, ExrPixelType::kHalf, 2, *c);
+    ASSERT_TRUE(wr.ok()) << name << ": " << wr.error().ToString();
+    size[name] = fs::file_size(path);
+    const Imf::Compression stored = StoredCompression(path);
+    EXPECT_EQ(stored, name == "dwaa"   ? Imf::DWAA_COMPRESSION
+                      : name == "dwab" ? Imf::DWAB_COMPRESSION
+                                       : Imf::NO_COMPRESSION)
+        << name;
+    auto r = ReadExr(path);
+    ASSERT_TRUE(r.ok()) << name << ": " << r.error().ToString();
+    double err2 = 0, ref2 = 0;
+    bool changed = false;
+    for (size_t i = 0; i < img.channel_names.size(); ++i) {
+      const size_t j =
+          std::find(r->channel_names.begin(), r->channel_names.end(), img.channel_names[i]) -
+          r->channel_names.begin();
+      ASSERT_LT(j, r->channel_names.size()) << img.channel_names[i];
+      if (img.channel_names[i] == "valid") {
+        EXPECT_EQ(cv::norm(r->channels[j], valid, cv::NORM_INF), 0.0) << name;
+        continue;
+      }
+      cv::Mat as_half, rounded;
+      img.channels[i].convertTo(as_half, CV_16F);
+      as_half.convertTo(rounded, CV_32F);
+      const double e = cv::norm(r->channels[j], rounded, cv::NORM_L2);
+      changed |= e > 0;
+      err2 += e * e;
+      ref2 += std::pow(cv::norm(rounded, cv::NORM_L2), 2);
+    }
+    if (name == "none") {
+      EXPECT_EQ(err2, 0.0);
+    } else {
+      EXPECT_TRUE(changed) << name << " stored the planes exactly: not the lossy codec";
+      EXPECT_LT(std::sqrt(err2 / ref2), 0.02) << name;
+    }
+  }
+  EXPECT_LT(size["dwaa"], size["none"] / 2);
+  EXPECT_LT(size["dwab"], size["none"] / 2);
+  fs::remove_all(dir);
 }
 
 TEST(ExrIo, GenericChannelsKeepNamesAndValues) {

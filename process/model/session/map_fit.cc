@@ -95,7 +95,7 @@ Result<MapFitResult> FitNearLampMaps(const MapFitRequest& req, const FitInput& i
                                      const std::vector<std::string>& paths, bool in_memory) {
   const Config& config = req.config;
   StreamFitInput sin = StreamInputOf(input, paths);
-  if (auto c = ParseExrCompression(config.process.model_compression); c.ok()) sin.compression = *c;
+  if (auto c = ParseExrCompression(config.process.model_compression, /*lossy=*/true); c.ok()) sin.compression = *c;
   std::unique_ptr<MapStore> store;
   std::unique_ptr<MapBands> bands;
   if (in_memory) {

@@ -334,6 +334,7 @@ Imf::Header StreamHeader(const StreamFitInput& in, const FitOptions& o, const St
   Imf::Header header(out.width, out.height, 1.0f, Imath::V2f(0, 0), 1.0f, Imf::INCREASING_Y,
                      static_cast<Imf::Compression>(code.imf_compression));
   if (code.zip_level > 0) header.zipCompressionLevel() = code.zip_level;
+  if (code.dwa_level > 0) header.dwaCompressionLevel() = code.dwa_level;
   for (int t = 0; t < pr.basis.size(); ++t)
     for (char c : {'R', 'G', 'B'})
       header.channels().insert(CoefficientChannelName(t, c), Imf::Channel(pixel));
