@@ -400,17 +400,30 @@ TEST_F(CollectionCommand, KilledAndStartedAgainWritesEveryOutputExactlyOnce) {
 
   // Every job of the workflow finished exactly once over the three runs: nothing written
   // twice, nothing a killed job left behind taken as done.
+  // A job can end in the instant the signal arrives: Snakemake has then marked it complete
+  // (handle_job_success runs before "Finished job N." is printed), so no later run plans it
+  // again. Such a job finished once in the run that started it, unannounced; one a later run
+  // plans again did not.
   std::map<std::string, int> done;
   std::set<std::string> planned;
-  for (const auto& l : logs) {
-    for (const auto& k : Finished(l)) ++done[k];
-    for (const auto& k : Keys(Jobs(l))) planned.insert(k);
+  for (size_t i = 0; i < logs.size(); ++i) {
+    const auto finished = Finished(logs[i]);
+    for (const auto& k : finished) ++done[k];
+    for (const auto& k : Keys(Jobs(logs[i]))) {
+      planned.insert(k);
+      bool again = false;
+      for (size_t j = i + 1; j < logs.size(); ++j) again = again || Keys(Jobs(logs[j])).count(k) > 0;
+      if (!finished.count(k) && !again && i + 1 < logs.size()) ++done[k];
+    }
   }
   ASSERT_EQ(planned.size(), 14u);  // 2 x (merge, fit, 2 exports, evaluate, render) + report + target
   for (const auto& k : planned) EXPECT_EQ(done[k], 1) << k << "\n" << logs[0] << logs[1] << logs[2];
   // Jobs were killed mid-run (started, never finished, in the first run): run again later.
   std::set<std::string> killed = Keys(Jobs(logs[0]));
   for (const auto& k : Finished(logs[0])) killed.erase(k);
+  std::erase_if(killed, [&](const std::string& k) {
+    return !Keys(Jobs(logs[1])).count(k) && !Keys(Jobs(logs[2])).count(k);
+  });
   EXPECT_FALSE(killed.empty()) << logs[0];
   SnakeRun check = Snakemake(c, "-n -j2");
   EXPECT_THAT(check.log, HasSubstr("Nothing to be done")) << check.log;
