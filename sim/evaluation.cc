@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include <opencv2/imgcodecs.hpp>
@@ -81,6 +82,11 @@ Result<LoadedSession> LoadSession(const fs::path& dir) {
   s.input.selection.order = -1;
   s.input.bytes_per_coefficient = s.config.process.model_pixel_type == "float" ? 4 : 2;
   s.input.max_order = s.config.process.max_order;
+  // The session's default as `rig process` chooses it: its family, budget and threads.
+  s.input.model_family = s.config.process.model_family;
+  s.input.pca.max_bytes_per_pixel = s.config.process.pca_max_bytes_per_pixel;
+  s.input.pca.threads = s.config.process.threads;
+  s.input.selection.threads = s.config.process.threads;
   if (fs::exists(dir / "truth" / "scene.json")) {
     RIG_ASSIGN_OR_RETURN(SimTruth truth, LoadTruth((dir / "truth").string()));
     auto shared = std::make_shared<const SimTruth>(std::move(truth));
@@ -302,6 +308,8 @@ struct SceneRow {
   std::string scene;
   int chosen = -1;
   std::vector<MethodResult> around;  // sh-rls at chosen-1, chosen, chosen+1
+  std::string session_default;       // the scene's default model (family chosen per byte)
+  std::optional<MethodResult> default_row;
 };
 
 // The HDR trials: on every bracket, then the stability sweeps on the first image.
@@ -353,9 +361,11 @@ Result<std::vector<SceneRow>> SceneRows(const fs::path& out, const std::vector<s
     s.input.timing_runs = timing_runs;
     Result<MethodEvaluation> e = scene == "full" ? Result<MethodEvaluation>(full) : EvaluateMethods(s.input);
     if (!e.ok()) return e.error();
-    SceneRow row{scene, -1, {}};
-    for (const auto& r : e->rows)
+    SceneRow row{scene, -1, {}, e->session_default, std::nullopt};
+    for (const auto& r : e->rows) {
       if (r.selected) row.chosen = r.order;
+      if (r.session_default) row.default_row = r;
+    }
     for (const auto& r : e->rows)
       if (r.basis == "sh" && r.method == "rls" && std::abs(r.order - row.chosen) <= 1) row.around.push_back(r);
     rows.push_back(row);
@@ -474,9 +484,21 @@ std::string ModelFindings(const MethodEvaluation& methods) {
       findings += fmt::format("- Plain least squares refuses SH order {} and above on this grid ({}); the regularised fit stays stable at every order (condition_vs_order.png).\n", first_refused, why);
   }
   if (selected) {
-    findings += fmt::format("- The automatic choice is {} ({} terms, {:g} bytes/pixel): {} of {:.4f}, fitted in {:.3f} s; it is {} the error-against-time Pareto front.\n",
+    findings += fmt::format("- The harmonic family's automatic choice is {} ({} terms, {:g} bytes/pixel): {} of {:.4f}, fitted in {:.3f} s; it is {} the error-against-time Pareto front.\n",
                             methods.selected, selected->terms, selected->bytes_per_pixel, err_kind, selected->Error(), selected->fit_time_s,
                             selected->pareto_time ? "on" : "not on");
+  }
+  const MethodResult* session_default = nullptr;
+  for (const auto& r : rows)
+    if (r.session_default) session_default = &r;
+  if (session_default) {
+    std::string why = methods.session_default_reason;
+    if (!why.empty() && why.back() != '.') why += '.';
+    findings += fmt::format("- The session's default model is {} ({:.2f} bytes/pixel as stored): {} of {:.4f}. The family's choice: {}\n",
+                            methods.session_default, session_default->bytes_per_pixel, err_kind,
+                            session_default->Error(), why);
+  } else if (!methods.session_default_reason.empty()) {
+    findings += fmt::format("- The session's default model: {}.\n", methods.session_default_reason);
   }
   if (methods.has_truth && selected) {
     findings += fmt::format("- Pixels shadowed at some sampled lamp ({} px) carry {:.3f} relative error with the chosen model against {:.3f} on always-lit pixels ({} px): attached and cast shadows are not band-limited.\n",
@@ -557,6 +579,14 @@ std::string EvaluationMarkdown(const fs::path& main_session, const LoadedSession
         report += fmt::format("| {} | {} | {}{} | {} | {:g} | {:.4f} | {:.4f} | {:.4f} |\n", s.scene, s.chosen, r.order,
                               r.order == s.chosen ? " (chosen)" : "", r.terms, r.bytes_per_pixel, r.fit_time_s, r.loo_relative,
                               r.truth_relative);
+    report += "\nThe session's default model — the family chosen per byte at held-out lamps, as `rig process` makes it — on each scene:\n\n| scene | default model | bytes/px | fit s | truth rel. |\n|---|---|---|---|---|\n";
+    for (const auto& s : scene_rows) {
+      if (s.default_row)
+        report += fmt::format("| {} | {} | {:.2f} | {:.4f} | {:.4f} |\n", s.scene, s.session_default,
+                              s.default_row->bytes_per_pixel, s.default_row->fit_time_s, s.default_row->truth_relative);
+      else
+        report += fmt::format("| {} | {} | | | |\n", s.scene, s.session_default);
+    }
     report += "\n";
   }
   report += "## HDR methods\n\nEach method recovers its own response from the bracket, then merges it. Error: log-radiance RMS on pixels some exposure records well, offset per channel removed (radiance is relative).\n\n![hdr](hdr_time_vs_error.png)\n\n";

@@ -5,12 +5,18 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <memory>
+#include <optional>
 
 #include <fmt/format.h>
 
+#include "config/console.h"
 #include "config/log.h"
 #include "process/evaluate/plot.h"
-#include "config/console.h"
+#include "process/model/hdr_codes.h"
+#include "process/model/light_direction.h"
+#include "process/model/pca/pca.h"
+#include "process/model/session/family_choice.h"
 
 namespace rig {
 namespace {
@@ -154,7 +160,8 @@ std::vector<Candidate> CandidatesUpTo(int max_order) {
 
 // The truth's relative errors of a fitted model: at held-out poses (all, shadowed, lit pixels)
 // and outside the sampled range.
-void CompareWithTruth(const Model& model, const MethodEvalInput& in, const TruthMaps& truth,
+template <class M>
+void CompareWithTruth(const M& model, const MethodEvalInput& in, const TruthMaps& truth,
                       double truth_scale, MethodResult* r) {
   ErrorSum all, sh, li, ex;
   for (size_t k = 0; k < in.held_out.size(); ++k) {
@@ -175,6 +182,125 @@ void CompareWithTruth(const Model& model, const MethodEvalInput& in, const Truth
   r->extrapolation_relative = ex.Relative();
 }
 
+MethodResult BlankRow() {
+  MethodResult r;
+  r.fit_time_s = r.render_s_per_mp = r.condition = r.loo_relative = kNan;
+  r.truth_relative = r.truth_relative_lit = r.truth_relative_shadowed = r.extrapolation_relative = kNan;
+  return r;
+}
+
+// Render time of a model: ρ for every pixel at three of the sampled lamps, per run; the
+// median run, per megapixel.
+template <class M>
+double RenderSecondsPerMp(const M& model, const FitInput& fit_in, int runs) {
+  const size_t n = fit_in.directions.size();
+  const double megapixels = fit_in.radiance[0].total() / 1e6;
+  std::vector<double> render_s;
+  for (int run = 0; run < runs; ++run) {
+    const auto t0 = Clock::now();
+    for (size_t k = 0; k < 3; ++k) {
+      cv::Mat rho = model.EvaluateRho(fit_in.directions[k * (n - 1) / 2]);
+      (void)rho;
+    }
+    render_s.push_back(Since(t0) / 3 / megapixels);
+  }
+  return MedianSeconds(render_s);
+}
+
+// "power1.25-q95" ("power1.25-g32-q95" when several grids are measured).
+std::string PcaMethodName(const std::string& curve, int resolution, int quality, bool grids) {
+  return grids ? fmt::format("{}-g{}-q{}", curve, resolution, quality) : fmt::format("{}-q{}", curve, quality);
+}
+
+// The PCA family's rows: per value curve, grid and size one fit to every map (timed as a
+// session fits it: the curve, the codes, the components and the light basis), then per JPEG
+// quality the model as it ships — encoded, its bytes counted, read back from them — measured
+// as the harmonic rows are. No leave-one-out: the family is judged at held-out lamps (the
+// truth's, or the session's own family choice).
+void AddPcaRows(const MethodEvalInput& in, const FitInput& fit_in, const TruthMaps& truth,
+                const std::vector<int>& components, MethodEvaluation* out) {
+  const int runs = std::max(1, in.timing_runs);
+  const double pixels = static_cast<double>(in.radiance[0].total());
+  const bool grids = in.pca.resolutions.size() > 1;
+  ProgressTask task("evaluating PCA models",
+                    static_cast<int64_t>(in.pca.curves.size() * in.pca.resolutions.size() * components.size()));
+  for (const auto& cc : in.pca.curves)
+    for (int res : in.pca.resolutions)
+      for (int k : components) {
+        task.Advance(1, fmt::format("pca {} {} components", cc.Name(), k));
+        const int q0 = in.pca.qualities.empty() ? 95 : in.pca.qualities.front();
+        std::vector<double> fit_s;
+        std::optional<PcaModel> model;
+        std::string refusal;
+        for (int run = 0; run < runs && refusal.empty(); ++run) {
+          const auto t0 = Clock::now();
+          const HdrCodeCurve curve =
+              FitHdrCurveOfRadiance(in.radiance, in.lamp_radiance_rgb, PcaHdrCurveOptions(cc, in.pca.high));
+          auto m = FitPca(SamplesFromMaps(in.radiance, fit_in.directions, in.lamp_radiance_rgb, curve),
+                          PcaHdrModelOptions(in.pca, k, res, q0));
+          fit_s.push_back(Since(t0));
+          if (!m.ok()) {
+            refusal = m.error().message;
+          } else if (!model) {
+            m->set_hdr({curve, in.lamp_radiance_rgb, in.light_frame});
+            model = std::move(*m);
+          }
+        }
+        for (int q : in.pca.qualities) {
+          MethodResult r = BlankRow();
+          r.basis = "pca";
+          r.method = PcaMethodName(cc.Name(), res, q, grids);
+          r.order = r.terms = k;
+          uint64_t bytes = 0;
+          Result<PcaModel> back = refusal.empty() ? (model->set_jpeg_quality(q), model->AsStored(&bytes))
+                                                  : Result<PcaModel>(MakeError(ErrorCode::kInvalidInput, "pca", "{}", refusal));
+          if (!back.ok()) {
+            r.refusal = back.error().message;
+            out->rows.push_back(r);
+            continue;
+          }
+          r.supported = true;
+          r.bytes_per_pixel = static_cast<double>(bytes) / pixels;
+          r.fit_time_s = MedianSeconds(fit_s);
+          const std::unique_ptr<ReflectanceModel> stored = WrapPca(std::move(*back));
+          r.render_s_per_mp = RenderSecondsPerMp(*stored, fit_in, runs);
+          if (out->has_truth) CompareWithTruth(*stored, in, truth, out->truth_scale, &r);
+          out->rows.push_back(r);
+        }
+      }
+}
+
+// The session's default family, chosen as `rig process` chooses it (null: harmonic without a
+// choice, the reason in *why).
+std::optional<SessionFamilyChoice> SessionChoice(const MethodEvalInput& in, const FitInput& fit_in,
+                                                 std::string* why) {
+  if (in.model_family == "harmonic") {
+    *why = "harmonic, as configured (model_family)";
+    return std::nullopt;
+  }
+  if (NearLamp::FromLightFrame(in.light_frame, in.radiance[0].rows).near()) {
+    *why = "harmonic: the lamp is near, and only the harmonic family models its fall-off";
+    return std::nullopt;
+  }
+  if (in.radiance.size() < 8) {
+    *why = fmt::format("harmonic: {} maps, and the PCA family needs 8 or more", in.radiance.size());
+    return std::nullopt;
+  }
+  ProgressTask task("choosing the session's model family", 1);
+  PcaHdrChoiceOptions po = in.pca;
+  po.warn_over_budget = false;
+  auto chosen = ChooseSessionFamily(in.radiance, fit_in.directions, in.lamp_radiance_rgb, in.selection,
+                                    in.bytes_per_coefficient, po);
+  task.Advance(1);
+  if (!chosen.ok()) {
+    *why = "none: " + chosen.error().message;
+    return std::nullopt;
+  }
+  if (in.model_family == "pca") chosen->family = "pca";
+  *why = in.model_family == "pca" ? "pca, as configured (model_family)" : chosen->reason;
+  return std::move(*chosen);
+}
+
 }  // namespace
 
 Result<MethodEvaluation> EvaluateMethods(const MethodEvalInput& in) {
@@ -192,20 +318,17 @@ Result<MethodEvaluation> EvaluateMethods(const MethodEvalInput& in) {
   const TruthMaps truth = out.has_truth ? TruthMapsOf(in, lamp_bgr, &out) : TruthMaps{};
 
   const std::vector<Candidate> candidates = CandidatesUpTo(in.max_order);
-  const double megapixels = in.radiance[0].total() / 1e6;
   const int runs = std::max(1, in.timing_runs);
   out.timing_runs = runs;
   ProgressTask task("evaluating models", static_cast<int64_t>(candidates.size()));
   for (const auto& c : candidates) {
     task.Advance(1, fmt::format("{} {} order {}", BasisKindName(c.basis), FitMethodName(c.method), c.order));
-    MethodResult r;
+    MethodResult r = BlankRow();
     r.basis = BasisKindName(c.basis);
     r.method = FitMethodName(c.method);
     r.order = c.order;
     r.terms = Basis::SizeFor(c.basis, c.order);
     r.bytes_per_pixel = 3.0 * r.terms * in.bytes_per_coefficient;
-    r.fit_time_s = r.render_s_per_mp = r.condition = r.loo_relative = kNan;
-    r.truth_relative = r.truth_relative_lit = r.truth_relative_shadowed = r.extrapolation_relative = kNan;
     FitOptions o = in.selection;
     o.basis = c.basis;
     o.method = c.method;
@@ -220,7 +343,7 @@ Result<MethodEvaluation> EvaluateMethods(const MethodEvalInput& in) {
     }
     r.supported = true;
     // The same fit again for its time: the median of the runs (the first run's model is kept).
-    std::vector<double> fit_s = {fit->fit_time_s}, render_s;
+    std::vector<double> fit_s = {fit->fit_time_s};
     for (int run = 1; run < runs; ++run) {
       auto again = FitModel(fit_in, o);
       if (again.ok()) fit_s.push_back(again->fit_time_s);
@@ -228,17 +351,7 @@ Result<MethodEvaluation> EvaluateMethods(const MethodEvalInput& in) {
     r.fit_time_s = MedianSeconds(fit_s);
     r.condition = fit->model.info().condition;
     r.loo_relative = fit->model.info().loo_rmse / rho_rms;
-    // Render time: ρ for every pixel at three lamp positions, per run; the median run.
-    for (int run = 0; run < runs; ++run) {
-      const auto t0 = Clock::now();
-      for (size_t k = 0; k < 3; ++k) {
-        const size_t i = k * (n - 1) / 2;
-        cv::Mat rho = fit->model.EvaluateRho(fit_in.directions[i]);
-        (void)rho;
-      }
-      render_s.push_back(Since(t0) / 3 / megapixels);
-    }
-    r.render_s_per_mp = MedianSeconds(render_s);
+    r.render_s_per_mp = RenderSecondsPerMp(fit->model, fit_in, runs);
     if (out.has_truth) CompareWithTruth(fit->model, in, truth, out.truth_scale, &r);
     log->debug("{} order {}: fit {:.3f} s, LOO {:.4f}, truth {:.4f}", r.Name(), r.order,
                r.fit_time_s, r.loo_relative, r.truth_relative);
@@ -255,6 +368,35 @@ Result<MethodEvaluation> EvaluateMethods(const MethodEvalInput& in) {
   } else {
     out.selected = "none: " + chosen.error().message;
   }
+
+  // The session's default: the family chosen per byte at held-out lamps, then its model
+  // among the rows (the PCA size it chose is measured even when not in pca_components).
+  const std::optional<SessionFamilyChoice> family = SessionChoice(in, fit_in, &out.session_default_reason);
+  std::vector<int> components = in.pca_components;
+  const PcaHdrCandidate* pick = nullptr;
+  if (family && family->family == "pca" && family->pca.chosen >= 0) {
+    pick = &family->pca.candidates[static_cast<size_t>(family->pca.chosen)];
+    if (std::find(components.begin(), components.end(), pick->components) == components.end()) {
+      components.push_back(pick->components);
+      std::sort(components.begin(), components.end());
+    }
+  }
+  if (in.pca_family && n >= 8) AddPcaRows(in, fit_in, truth, components, &out);
+  if (pick) {
+    const bool grids = in.pca.resolutions.size() > 1;
+    for (auto& r : out.rows) {
+      r.session_default = r.basis == "pca" && r.order == pick->components &&
+                          r.method == PcaMethodName(pick->curve, pick->resolution, pick->quality, grids);
+      if (r.session_default) out.session_default = fmt::format("{}, {} components", r.Name(), r.order);
+    }
+  } else if (out.session_default_reason.rfind("none", 0) != 0 && chosen.ok()) {
+    for (auto& r : out.rows) {
+      r.session_default = r.selected;
+      if (r.selected) out.session_default = out.selected;
+    }
+  }
+  if (out.session_default.empty() && pick)
+    out.session_default = fmt::format("pca {}: not among the rows", pick->curve);
   MarkParetoFronts(&out.rows);
   return out;
 }
@@ -275,17 +417,17 @@ std::string MethodsCsv(const MethodEvaluation& e) {
       "basis,method,order,terms,supported,fit_time_s,render_s_per_mp,bytes_per_pixel,condition,"
       "loo_relative_rmse,truth_relative_rmse,truth_relative_rmse_shadowed,"
       "truth_relative_rmse_lit,extrapolation_relative_rmse,pareto_time,pareto_storage,selected,"
-      "refusal\n";
+      "session_default,refusal\n";
   for (const auto& r : e.rows) {
     std::string refusal = r.refusal;
     for (char& ch : refusal)
       if (ch == '"') ch = '\'';
-    s += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},\"{}\"\n", r.basis,
+    s += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},\"{}\"\n", r.basis,
                      r.method, r.order, r.terms, r.supported ? 1 : 0, NumFull(r.fit_time_s),
                      NumFull(r.render_s_per_mp), r.bytes_per_pixel, NumFull(r.condition),
                      NumFull(r.loo_relative), NumFull(r.truth_relative), NumFull(r.truth_relative_shadowed),
                      NumFull(r.truth_relative_lit), NumFull(r.extrapolation_relative), r.pareto_time ? 1 : 0,
-                     r.pareto_storage ? 1 : 0, r.selected ? 1 : 0, refusal);
+                     r.pareto_storage ? 1 : 0, r.selected ? 1 : 0, r.session_default ? 1 : 0, refusal);
   }
   return s;
 }
@@ -306,11 +448,13 @@ std::string MethodsMarkdown(const MethodEvaluation& e) {
       continue;
     }
     std::string front = r.selected ? "**selected** " : "";
+    if (r.session_default) front += "**session default** ";
     if (r.pareto_time) front += "time ";
     if (r.pareto_storage) front += "storage";
     s += fmt::format("| {}{}{} | {} | {} | {:.4f} | {:.4f} | {:g} | {} | {} | {} ({} / {}) | {} | {} |\n",
                      r.selected ? "**" : "", r.Name(), r.selected ? "**" : "", r.order, r.terms,
-                     r.fit_time_s, r.render_s_per_mp, r.bytes_per_pixel, FormatNum(r.condition, "{:.3g}"),
+                     r.fit_time_s, r.render_s_per_mp, r.bytes_per_pixel,
+                     std::isinf(r.condition) ? std::string("ill-conditioned") : FormatNum(r.condition, "{:.3g}"),
                      FormatNum(r.loo_relative), FormatNum(r.truth_relative), FormatNum(r.truth_relative_shadowed),
                      FormatNum(r.truth_relative_lit), FormatNum(r.extrapolation_relative), front);
   }
@@ -323,6 +467,7 @@ namespace {
 cv::Mat ChartAgainst(const MethodEvaluation& e, bool storage) {
   std::vector<PlotSeries> series;
   std::vector<PlotMarker> markers;
+  double min_x = std::numeric_limits<double>::infinity(), max_x = 0;
   for (const auto& r : e.rows) {
     if (!r.supported) continue;
     auto it = std::find_if(series.begin(), series.end(), [&](const PlotSeries& s) { return s.label == r.Name(); });
@@ -338,14 +483,24 @@ cv::Mat ChartAgainst(const MethodEvaluation& e, bool storage) {
     if (r.selected)
       markers.push_back({it->x.back(), r.Error(), PlotMarker::Style::kBigRing, {0, 0, 230},
                          "selected: " + e.selected});
+    if (r.session_default)
+      markers.push_back({it->x.back(), r.Error(), PlotMarker::Style::kSquare, {0, 150, 0},
+                         "session default"});
+    if (storage && std::isfinite(r.bytes_per_pixel) && r.bytes_per_pixel > 0) {
+      min_x = std::min(min_x, r.bytes_per_pixel);
+      max_x = std::max(max_x, r.bytes_per_pixel);
+    }
   }
   PlotOptions o;
   o.title = storage ? "Error against storage" : "Error against fit time";
   o.x_label = storage ? "bytes per pixel (3 colours)" : (e.timing_runs > 1 ? fmt::format("fit time (s, median of {} runs)", e.timing_runs) : "fit time (s)");
   o.y_label = e.has_truth ? "relative RMS error vs truth, held-out lamps" : "relative LOO RMS error";
-  o.log_x = !storage;
+  // Bytes on a log axis when the families span more than a decade (PCA's few bytes beside
+  // harmonic planes of hundreds).
+  o.log_x = !storage || max_x > 10 * min_x;
   o.log_y = true;
-  o.notes = {"one line per method, numbers = order; black rings: Pareto front; red: the automatic choice"};
+  o.notes = {"one line per method, numbers = order (PCA: components); black rings: Pareto front",
+             "red: the harmonic family's automatic order; green square: the session's default model"};
   return DrawPlot(series, markers, o);
 }
 

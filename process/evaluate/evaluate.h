@@ -1,9 +1,11 @@
 // Speed against accuracy of every reflectance-model choice on the same data: each basis, fit
 // method and order (SH by the paper's quadrature, by least squares and regularised; HSH;
-// PTM) measured for fit time, render time per megapixel, bytes per pixel, leave-one-out error
-// and — when the truth is known (simulated sessions) — error at held-out lamp positions
-// inside the sampled region and beyond it. Marks the Pareto fronts and the model the
-// automatic selection picks.
+// PTM; the PCA family with its interpolated light basis, each value curve, size and JPEG
+// quality) measured for fit time, render time per megapixel, bytes per pixel as stored,
+// leave-one-out error (harmonic) and — when the truth is known (simulated sessions) — error at
+// held-out lamp positions inside the sampled region and beyond it. Marks the Pareto fronts,
+// the harmonic order the automatic selection picks and the session's default model (the
+// family chosen per byte, as `rig process` makes it).
 #pragma once
 
 #include <functional>
@@ -16,6 +18,7 @@
 #include "config/result.h"
 #include "process/model/harmonic/fit.h"
 #include "process/model/harmonic/model.h"
+#include "process/model/pca/pca_hdr.h"
 
 namespace rig {
 
@@ -34,6 +37,15 @@ struct MethodEvalInput {
   // Each fit and each render timed this many times, the median kept (the same machine draws
   // the same chart whatever else it is doing); the first fit's model is the one measured.
   int timing_runs = 3;
+  // The PCA family's rows (8 or more maps): every curve of pca.curves, size of
+  // pca_components, grid of pca.resolutions and JPEG quality of pca.qualities, fitted to every
+  // map and measured as read back from the bytes it ships as.
+  bool pca_family = true;
+  PcaHdrChoiceOptions pca;
+  std::vector<int> pca_components = {3, 6, 12, 18, 30};
+  // The session's own default model: "auto" chooses the family per byte at held-out lamps
+  // (ChooseSessionFamily, as `rig process` does); "harmonic" or "pca" as configured.
+  std::string model_family = "auto";
 };
 
 struct MethodResult {
@@ -52,8 +64,9 @@ struct MethodResult {
   double truth_relative = 0, truth_relative_shadowed = 0, truth_relative_lit = 0;
   double extrapolation_relative = 0;
   bool selected = false, pareto_time = false, pareto_storage = false;
+  bool session_default = false;           // the model `rig process` makes of this session
 
-  std::string Name() const;               // "sh-rls", "ptm-ls"
+  std::string Name() const;               // "sh-rls", "ptm-ls", "pca-power1.25-q95"
   double Error() const;                   // truth_relative when known, else loo_relative
 };
 
@@ -61,6 +74,8 @@ struct MethodEvaluation {
   std::vector<MethodResult> rows;
   bool has_truth = false;
   std::string selected;                   // "sh-rls order 4"
+  std::string session_default;            // "pca-power1.25-q100, 18 components" (or why none)
+  std::string session_default_reason;     // the family choice's sentence
   double truth_scale = 1;                 // data ρ = scale · true ρ (HDR units are relative)
   size_t shadowed_pixels = 0, lit_pixels = 0;
   int timing_runs = 1;                    // each time the median of this many runs

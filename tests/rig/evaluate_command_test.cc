@@ -3,6 +3,7 @@
 // charts are real PNGs, and a session folder can be evaluated again without simulation.
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 #include <gmock/gmock.h>
@@ -56,23 +57,44 @@ TEST(EvaluateCommand, DryRunWritesEveryMethodAndOrderTheFrontsTheChoiceAndCharts
                   "/config/sim.toml --hdr-images " + testing::SharedDir() + "/data/hdr --out " + out);
   ASSERT_EQ(r.status, 0) << r.output;
   auto rows = ReadCsv(fs::path(out) / "methods.csv");
-  // SH by quadrature, LS and RLS, HSH by LS and RLS at orders 0..6; PTM by LS and RLS at 1..4.
-  ASSERT_EQ(rows.size(), 3u * 7 + 2u * 7 + 2u * 4);
-  int selected = 0, supported = 0, refused = 0;
+  // SH by quadrature, LS and RLS, HSH by LS and RLS at orders 0..6; PTM by LS and RLS at 1..4;
+  // PCA with two value curves, 3..30 components (and the size the session's choice took, when
+  // not among them), two JPEG qualities.
+  size_t harmonic = 0, pca = 0;
+  for (const auto& row : rows) (row.at("basis") == "pca" ? pca : harmonic) += 1;
+  ASSERT_EQ(harmonic, 3u * 7 + 2u * 7 + 2u * 4);
+  EXPECT_TRUE(pca == 2u * 5 * 2 || pca == 2u * 6 * 2) << pca;
+  int selected = 0, supported = 0, refused = 0, session_default = 0;
   for (const auto& row : rows) {
     selected += row.at("selected") == "1";
+    session_default += row.at("session_default") == "1";
+    if (row.at("basis") == "pca") {
+      // As stored: every plane's bytes (a 3-component model's are fewer than a 30's), no LOO.
+      EXPECT_EQ(row.at("supported"), "1") << row.at("method") << row.at("order");
+      EXPECT_GT(Num(row, "bytes_per_pixel"), 0);
+      EXPECT_TRUE(std::isnan(Num(row, "loo_relative_rmse")));
+      EXPECT_TRUE(std::isfinite(Num(row, "truth_relative_rmse"))) << row.at("method") << row.at("order");
+      EXPECT_EQ(row.at("selected"), "0");
+    }
     if (row.at("supported") != "1") {
       ++refused;
       EXPECT_FALSE(row.at("refusal").empty()) << row.at("basis") << row.at("method") << row.at("order");
       continue;
     }
     ++supported;
-    for (const char* k : {"fit_time_s", "render_s_per_mp", "bytes_per_pixel", "loo_relative_rmse",
-                          "truth_relative_rmse"}) {
+    for (const char* k : {"fit_time_s", "render_s_per_mp", "bytes_per_pixel", "truth_relative_rmse"}) {
       EXPECT_TRUE(std::isfinite(Num(row, k))) << k << " " << row.at("basis") << "-" << row.at("method") << " " << row.at("order");
     }
   }
   EXPECT_EQ(selected, 1);
+  // The session's default model (its family chosen per byte) is one row, and the report names it.
+  EXPECT_EQ(session_default, 1);
+  {
+    std::map<std::string, double> bytes;  // power1.25-q95 by components
+    for (const auto& row : rows)
+      if (row.at("basis") == "pca" && row.at("method") == "power1.25-q95") bytes[row.at("order")] = Num(row, "bytes_per_pixel");
+    EXPECT_LT(bytes["3"], bytes["30"]);
+  }
   // Least squares cannot fit SH order 4 and above on the 4-level grid: refused, not garbage.
   EXPECT_GE(refused, 3);
   EXPECT_GT(supported, 30);
@@ -121,6 +143,8 @@ TEST(EvaluateCommand, DryRunWritesEveryMethodAndOrderTheFrontsTheChoiceAndCharts
   EXPECT_THAT(text.str(), HasSubstr("## Findings"));
   EXPECT_THAT(text.str(), HasSubstr("No more model than the scene needs"));
   EXPECT_THAT(text.str(), HasSubstr("| matte |"));
+  EXPECT_THAT(text.str(), HasSubstr("The session's default model is "));
+  EXPECT_THAT(text.str(), HasSubstr("**session default**"));
   // Times are medians of runs (the default three), and the tables and report say so.
   EXPECT_THAT(text.str(), HasSubstr("wall seconds, the median of 3 runs of each"));
   EXPECT_THAT(text.str(), HasSubstr("| fit s (median of 3) |"));
