@@ -310,6 +310,7 @@ struct SceneRow {
   std::vector<MethodResult> around;  // sh-rls at chosen-1, chosen, chosen+1
   std::string session_default;       // the scene's default model (family chosen per byte)
   std::optional<MethodResult> default_row;
+  std::vector<FamilyFold> folds;     // the family choice under each held-out rule
 };
 
 // The HDR trials: on every bracket, then the stability sweeps on the first image.
@@ -361,7 +362,7 @@ Result<std::vector<SceneRow>> SceneRows(const fs::path& out, const std::vector<s
     s.input.timing_runs = timing_runs;
     Result<MethodEvaluation> e = scene == "full" ? Result<MethodEvaluation>(full) : EvaluateMethods(s.input);
     if (!e.ok()) return e.error();
-    SceneRow row{scene, -1, {}, e->session_default, std::nullopt};
+    SceneRow row{scene, -1, {}, e->session_default, std::nullopt, e->family_folds};
     for (const auto& r : e->rows) {
       if (r.selected) row.chosen = r.order;
       if (r.session_default) row.default_row = r;
@@ -588,6 +589,23 @@ std::string EvaluationMarkdown(const fs::path& main_session, const LoadedSession
         report += fmt::format("| {} | {} | | | |\n", s.scene, s.session_default);
     }
     report += "\n";
+    bool any_fold = false;
+    for (const auto& s : scene_rows) any_fold = any_fold || !s.folds.empty();
+    if (any_fold) {
+      report += "Which lamps the family choice holds out, and what each family's fold model scores there beside the truth (relative RMS at the cell centres) of the model each family would make — the rule `rig process` uses first:\n\n"
+                "| scene | held out | lamps | PCA: held out | PCA truth | harmonic: held out | harmonic truth | chosen | the truth's pick |\n|---|---|---|---|---|---|---|---|---|\n";
+      for (const auto& s : scene_rows)
+        for (const auto& f : s.folds) {
+          std::string truth_pick = "";
+          if (std::isfinite(f.pca_truth) && std::isfinite(f.harmonic_truth))
+            truth_pick = f.pca_truth <= f.harmonic_truth ? "pca" : "harmonic";
+          report += fmt::format("| {} | {}{} | {} | {:.4f} ({} comp., {:.1f} B/px) | {:.4f} | {:.4f} (order {}, {:.0f} B/px) | {:.4f} | {} | {} |\n",
+                                s.scene, f.rule, f.session ? " (rig process)" : "", f.held_out, f.pca_held_out,
+                                f.pca_components, f.pca_bytes_per_pixel, f.pca_truth, f.harmonic_held_out,
+                                f.harmonic_order, f.harmonic_bytes_per_pixel, f.harmonic_truth, f.chosen, truth_pick);
+        }
+      report += "\n";
+    }
   }
   report += "## HDR methods\n\nEach method recovers its own response from the bracket, then merges it. Error: log-radiance RMS on pixels some exposure records well, offset per channel removed (radiance is relative).\n\n![hdr](hdr_time_vs_error.png)\n\n";
   report += HdrTable(hdr.main);

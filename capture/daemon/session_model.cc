@@ -131,11 +131,12 @@ Status FitSessionPca(const Session& session, MapBands& bands, const StreamFitInp
       "# The session's model\n\nPCA of the reflectance (radiance / lamp radiance) of {} radiance "
       "maps, {:.2f} B/px on disk, fitted in {:.2f} s from {} (the choice {:.2f} s, the curve and "
       "components {:.2f} s, every pixel's coefficients and the planes {:.2f} s).\n\n{}.\n\n"
-      "Every candidate fitted to the {}x{} pixels at ({}, {}){} without every 6th lamp, written, "
+      "Every candidate fitted to the {}x{} pixels at ({}, {}){} without {} lamps ({}), written, "
       "read back and scored at the lamps held out (relative RMS of linear reflectance):\n\n{}",
       in.directions.size(), bpp, fit.time_s, source, fit.choice_s, fit.gather_s, fit.write_s,
       fit.choice.reason, r.width, r.height, r.x, r.y,
       r.width == fit.width && r.height == fit.height ? " (the whole image)" : " (the central region)",
+      ChoiceHeldOutLamps(in.directions, o).size(), HeldOutRuleName(in.directions, o),
       family ? SessionFamilyMarkdown(*family) : PcaHdrChoiceMarkdown(fit.choice));
   Status st = WriteFileAtomic(layout.model() / "report.md", report);
   if (!st.ok()) log->warn("{}", st.error().ToString());

@@ -17,6 +17,7 @@
 #include "process/model/light_direction.h"
 #include "process/model/pca/pca.h"
 #include "process/model/session/family_choice.h"
+#include "process/model/session/pca_session.h"
 
 namespace rig {
 namespace {
@@ -271,9 +272,10 @@ void AddPcaRows(const MethodEvalInput& in, const FitInput& fit_in, const TruthMa
 }
 
 // The session's default family, chosen as `rig process` chooses it (null: harmonic without a
-// choice, the reason in *why).
+// choice, the reason in *why); with the other held-out rule too, in *other (for the report).
 std::optional<SessionFamilyChoice> SessionChoice(const MethodEvalInput& in, const FitInput& fit_in,
-                                                 std::string* why) {
+                                                 std::string* why,
+                                                 std::optional<SessionFamilyChoice>* other) {
   if (in.model_family == "harmonic") {
     *why = "harmonic, as configured (model_family)";
     return std::nullopt;
@@ -286,11 +288,24 @@ std::optional<SessionFamilyChoice> SessionChoice(const MethodEvalInput& in, cons
     *why = fmt::format("harmonic: {} maps, and the PCA family needs 8 or more", in.radiance.size());
     return std::nullopt;
   }
-  ProgressTask task("choosing the session's model family", 1);
+  ProgressTask task("choosing the session's model family", 2);
   PcaHdrChoiceOptions po = in.pca;
   po.warn_over_budget = false;
-  auto chosen = ChooseSessionFamily(in.radiance, fit_in.directions, in.lamp_radiance_rgb, in.selection,
+  // On the maps' central region, as `rig process` chooses (the whole map up to 512 × 512).
+  const cv::Rect region = PcaHdrChoiceRegion(in.radiance[0].cols, in.radiance[0].rows);
+  std::vector<cv::Mat> maps;
+  maps.reserve(in.radiance.size());
+  for (const cv::Mat& m : in.radiance) maps.push_back(region.size() == m.size() ? m : m(region).clone());
+  auto chosen = ChooseSessionFamily(maps, fit_in.directions, in.lamp_radiance_rgb, in.selection,
                                     in.bytes_per_coefficient, po);
+  task.Advance(1);
+  PcaHdrChoiceOptions alt = po;
+  alt.held_out = po.held_out == "interior" ? "every" : "interior";
+  if (HeldOutRuleName(fit_in.directions, alt) != HeldOutRuleName(fit_in.directions, po)) {
+    auto again = ChooseSessionFamily(maps, fit_in.directions, in.lamp_radiance_rgb, in.selection,
+                                     in.bytes_per_coefficient, alt);
+    if (again.ok()) *other = std::move(*again);
+  }
   task.Advance(1);
   if (!chosen.ok()) {
     *why = "none: " + chosen.error().message;
@@ -371,13 +386,22 @@ Result<MethodEvaluation> EvaluateMethods(const MethodEvalInput& in) {
 
   // The session's default: the family chosen per byte at held-out lamps, then its model
   // among the rows (the PCA size it chose is measured even when not in pca_components).
-  const std::optional<SessionFamilyChoice> family = SessionChoice(in, fit_in, &out.session_default_reason);
+  std::optional<SessionFamilyChoice> other_rule;
+  const std::optional<SessionFamilyChoice> family =
+      SessionChoice(in, fit_in, &out.session_default_reason, &other_rule);
   std::vector<int> components = in.pca_components;
   const PcaHdrCandidate* pick = nullptr;
   if (family && family->family == "pca" && family->pca.chosen >= 0) {
     pick = &family->pca.candidates[static_cast<size_t>(family->pca.chosen)];
     if (std::find(components.begin(), components.end(), pick->components) == components.end()) {
       components.push_back(pick->components);
+      std::sort(components.begin(), components.end());
+    }
+  }
+  if (other_rule && other_rule->pca.chosen >= 0) {
+    const int k = other_rule->pca.candidates[static_cast<size_t>(other_rule->pca.chosen)].components;
+    if (std::find(components.begin(), components.end(), k) == components.end()) {
+      components.push_back(k);
       std::sort(components.begin(), components.end());
     }
   }
@@ -397,6 +421,37 @@ Result<MethodEvaluation> EvaluateMethods(const MethodEvalInput& in) {
   }
   if (out.session_default.empty() && pick)
     out.session_default = fmt::format("pca {}: not among the rows", pick->curve);
+  // Each held-out rule's verdict beside the truth of what each family would make.
+  const std::optional<SessionFamilyChoice>* rules[] = {&family, &other_rule};
+  for (const auto* f : rules) {
+    if (!*f) continue;
+    const SessionFamilyChoice& c = **f;
+    FamilyFold fold;
+    fold.rule = c.held_out_rule;
+    fold.held_out = c.held_out;
+    fold.chosen = c.family;
+    fold.session = f == &family;
+    fold.pca_held_out = c.pca_candidate.held_out_relative;
+    fold.harmonic_held_out = c.harmonic_candidate.held_out_relative;
+    fold.pca_components = c.pca_candidate.size;
+    fold.harmonic_order = c.harmonic_candidate.size;
+    fold.pca_bytes_per_pixel = c.pca_candidate.bytes_per_pixel;
+    fold.harmonic_bytes_per_pixel = c.harmonic_candidate.bytes_per_pixel;
+    fold.pca_truth = fold.harmonic_truth = std::numeric_limits<double>::quiet_NaN();
+    const bool grids = in.pca.resolutions.size() > 1;
+    if (c.pca.chosen >= 0) {
+      const PcaHdrCandidate& p = c.pca.candidates[static_cast<size_t>(c.pca.chosen)];
+      for (const auto& r : out.rows)
+        if (r.supported && r.basis == "pca" && r.order == p.components &&
+            r.method == PcaMethodName(p.curve, p.resolution, p.quality, grids))
+          fold.pca_truth = r.truth_relative;
+    }
+    const std::string hb = BasisKindName(in.selection.basis), hm = FitMethodName(in.selection.method);
+    for (const auto& r : out.rows)
+      if (r.supported && r.basis == hb && r.method == hm && r.order == fold.harmonic_order)
+        fold.harmonic_truth = r.truth_relative;
+    out.family_folds.push_back(fold);
+  }
   MarkParetoFronts(&out.rows);
   return out;
 }

@@ -70,12 +70,26 @@ struct MethodResult {
   double Error() const;                   // truth_relative when known, else loo_relative
 };
 
+// One held-out rule of the family choice: both families' fold errors and the truth of what
+// each would make (NaN when not among the rows).
+struct FamilyFold {
+  std::string rule;        // "spread inside the lamps' outline" | "every 6th"
+  int held_out = 0;
+  std::string chosen;      // "pca" | "harmonic"
+  double pca_held_out = 0, harmonic_held_out = 0;
+  int pca_components = 0, harmonic_order = 0;
+  double pca_bytes_per_pixel = 0, harmonic_bytes_per_pixel = 0;
+  double pca_truth = 0, harmonic_truth = 0;
+  bool session = false;    // the rule `rig process` uses
+};
+
 struct MethodEvaluation {
   std::vector<MethodResult> rows;
   bool has_truth = false;
   std::string selected;                   // "sh-rls order 4"
   std::string session_default;            // "pca-power1.25-q100, 18 components" (or why none)
   std::string session_default_reason;     // the family choice's sentence
+  std::vector<FamilyFold> family_folds;   // the session's held-out rule, then the other
   double truth_scale = 1;                 // data ρ = scale · true ρ (HDR units are relative)
   size_t shadowed_pixels = 0, lit_pixels = 0;
   int timing_runs = 1;                    // each time the median of this many runs

@@ -78,8 +78,12 @@ int TextWidth(const std::string& s, double scale) {
 cv::Scalar PlotColor(int n) {
   static const cv::Scalar kPalette[] = {
       {180, 119, 31}, {14, 127, 255}, {44, 160, 44},  {40, 39, 214},  {189, 103, 148},
-      {75, 86, 140},  {194, 119, 227}, {127, 127, 127}, {34, 189, 188}, {207, 190, 23}};
-  return kPalette[n % 10];
+      {75, 86, 140},  {194, 119, 227}, {127, 127, 127}, {34, 189, 188}, {207, 190, 23},
+      // Then the same hues darker, so that up to 20 series are told apart.
+      {112, 62, 10},  {0, 78, 170},   {20, 100, 20},  {20, 20, 140},  {120, 50, 90},
+      {40, 50, 90},   {130, 60, 160}, {60, 60, 60},   {10, 120, 120}, {130, 110, 0}};
+  constexpr int kColours = static_cast<int>(sizeof(kPalette) / sizeof(kPalette[0]));
+  return kPalette[((n % kColours) + kColours) % kColours];
 }
 
 cv::Mat DrawPlot(const std::vector<PlotSeries>& series, const std::vector<PlotMarker>& markers,

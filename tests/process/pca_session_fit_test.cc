@@ -164,7 +164,7 @@ TEST_F(PcaSessionFitTest, TheChoiceTakesTheSmallestCandidateWithinTheNoiseOfTheB
   for (const auto& c : fit->candidates) {
     double sum = 0;
     for (double e : c.per_lamp) sum += e;
-    EXPECT_EQ(c.per_lamp.size(), 5u);  // 28 lamps, every 6th held out: 0, 6, ..., 24
+    EXPECT_EQ(c.per_lamp.size(), 5u);  // 28 lamps, ceil(28 / 6) held out, inside the outline
     EXPECT_NEAR(std::sqrt(sum), c.held_out_relative, 1e-12);
     EXPECT_GE(c.held_out_relative, best.held_out_relative);
     EXPECT_GE(c.excess_se, 0);
@@ -187,6 +187,59 @@ TEST_F(PcaSessionFitTest, TheChoiceTakesTheSmallestCandidateWithinTheNoiseOfTheB
   ASSERT_TRUE(loose.ok());
   for (const auto& c : loose->candidates)
     EXPECT_GE(c.bytes_per_pixel, loose->candidates[loose->chosen].bytes_per_pixel);
+}
+
+// The held-out lamps lie inside the set's outline, so the fold measures relighting between
+// lamps: on the rig's default grid (h 0-90°, v 0-30°, 10° steps) the lamps of the outer rows and
+// columns are never held out; on a dome its lowest ring is the outline.
+TEST(HeldOutLamps, InsideTheOutlineOfTheGridAndOfADome) {
+  std::vector<Vec3> grid;
+  std::vector<std::pair<int, int>> pose;
+  for (int v = 0; v <= 30; v += 10)
+    for (int h = 0; h <= 90; h += 10) {
+      grid.push_back(LightDirection(h, v));
+      pose.emplace_back(h, v);
+    }
+  const std::vector<int> inner = InteriorLamps(grid);
+  ASSERT_EQ(inner.size(), 16u);  // h 10-80 at v 10 and 20
+  for (int i : inner) {
+    EXPECT_GT(pose[i].first, 0);
+    EXPECT_LT(pose[i].first, 90);
+    EXPECT_GT(pose[i].second, 0);
+    EXPECT_LT(pose[i].second, 30);
+  }
+  PcaHdrChoiceOptions o;
+  const std::vector<int> held = ChoiceHeldOutLamps(grid, o);
+  ASSERT_EQ(held.size(), HeldOutLamps(grid.size(), o.validation_every).size());  // 7 of 40
+  for (int i : held) EXPECT_NE(std::find(inner.begin(), inner.end(), i), inner.end()) << i;
+  EXPECT_EQ(held.front(), inner.front());
+  EXPECT_EQ(held.back(), inner.back());
+  EXPECT_TRUE(std::is_sorted(held.begin(), held.end()));
+  EXPECT_EQ(std::adjacent_find(held.begin(), held.end()), held.end());
+  EXPECT_NE(HeldOutRuleName(grid, o).find("outline"), std::string::npos);
+  o.held_out = "every";
+  EXPECT_EQ(ChoiceHeldOutLamps(grid, o), HeldOutLamps(grid.size(), 6));
+  EXPECT_EQ(HeldOutRuleName(grid, o), "every 6th");
+
+  // A dome: rings at 15, 40 and 65° of elevation (12, 10, 6 lamps) and the zenith.
+  std::vector<Vec3> dome;
+  const double pi = std::acos(-1.0);
+  for (auto [elevation, count] : std::vector<std::pair<double, int>>{{15, 12}, {40, 10}, {65, 6}}) {
+    for (int k = 0; k < count; ++k) {
+      const double e = elevation * pi / 180, a = 2 * pi * (k + 0.5 * (count == 10)) / count;
+      dome.push_back({std::cos(e) * std::cos(a), std::cos(e) * std::sin(a), std::sin(e)});
+    }
+  }
+  dome.push_back({0, 0, 1});
+  const std::vector<int> dome_inner = InteriorLamps(dome);
+  EXPECT_EQ(dome_inner.size(), 17u);  // all but the lowest ring
+  for (int i : dome_inner) EXPECT_GE(i, 12);
+
+  // Too few lamps inside (a single row): every n-th instead.
+  std::vector<Vec3> row;
+  for (int h = 0; h <= 90; h += 10) row.push_back(LightDirection(h, 20));
+  EXPECT_TRUE(InteriorLamps(row).empty());
+  EXPECT_EQ(ChoiceHeldOutLamps(row, PcaHdrChoiceOptions{}), HeldOutLamps(row.size(), 6));
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <numbers>
 #include <thread>
 
 #include <fmt/format.h>
@@ -161,6 +162,65 @@ std::vector<int> HeldOutLamps(size_t lamps, int every) {
   return held;
 }
 
+std::vector<int> InteriorLamps(const std::vector<Vec3>& directions) {
+  const size_t n = directions.size();
+  std::vector<Vec3> d(n);
+  for (size_t i = 0; i < n; ++i) {
+    const Vec3& v = directions[i];
+    const double len = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    d[i] = len > 0 ? Vec3{v[0] / len, v[1] / len, v[2] / len} : Vec3{0, 0, 1};
+  }
+  auto dot = [](const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; };
+  auto angle = [&](size_t i, size_t j) { return std::acos(std::clamp(dot(d[i], d[j]), -1.0, 1.0)); };
+  std::vector<int> interior;
+  for (size_t i = 0; i < n; ++i) {
+    double nearest = INFINITY;
+    for (size_t j = 0; j < n; ++j)
+      if (j != i) nearest = std::min(nearest, angle(i, j));
+    if (!(nearest > 1e-9)) continue;
+    // Two axes of the tangent plane at the lamp; the neighbours' bearings in it.
+    Vec3 a = std::abs(d[i][2]) < 0.9 ? Vec3{0, 0, 1} : Vec3{1, 0, 0};
+    const double ad = dot(a, d[i]);
+    for (int k = 0; k < 3; ++k) a[k] -= ad * d[i][k];
+    const double an = std::sqrt(dot(a, a));
+    for (double& v : a) v /= an;
+    const Vec3 b{d[i][1] * a[2] - d[i][2] * a[1], d[i][2] * a[0] - d[i][0] * a[2],
+                 d[i][0] * a[1] - d[i][1] * a[0]};
+    std::vector<double> bearing;
+    for (size_t j = 0; j < n; ++j)
+      if (j != i && angle(i, j) <= 2 * nearest) bearing.push_back(std::atan2(dot(d[j], b), dot(d[j], a)));
+    if (bearing.size() < 3) continue;
+    std::sort(bearing.begin(), bearing.end());
+    double gap = bearing.front() + 2 * std::numbers::pi - bearing.back();
+    for (size_t k = 1; k < bearing.size(); ++k) gap = std::max(gap, bearing[k] - bearing[k - 1]);
+    // Surrounded: no side of it without neighbours (an edge leaves a gap of about 180°, a
+    // corner more; inside a grid or a dome the gaps are 60-90°).
+    if (gap < 0.75 * std::numbers::pi) interior.push_back(static_cast<int>(i));
+  }
+  return interior;
+}
+
+std::vector<int> ChoiceHeldOutLamps(const std::vector<Vec3>& directions, const PcaHdrChoiceOptions& o) {
+  const std::vector<int> every = HeldOutLamps(directions.size(), o.validation_every);
+  if (o.held_out != "interior") return every;
+  const std::vector<int> inner = InteriorLamps(directions);
+  if (inner.size() < 3) return every;
+  const size_t want = every.size();
+  if (inner.size() <= want) return inner;
+  std::vector<int> held;
+  // Evenly spread over the interior lamps in their order (the grid's), ends included.
+  for (size_t i = 0; i < want; ++i)
+    held.push_back(inner[want > 1 ? (i * (inner.size() - 1) + (want - 1) / 2) / (want - 1) : inner.size() / 2]);
+  held.erase(std::unique(held.begin(), held.end()), held.end());
+  return held;
+}
+
+std::string HeldOutRuleName(const std::vector<Vec3>& directions, const PcaHdrChoiceOptions& o) {
+  if (o.held_out == "interior" && InteriorLamps(directions).size() >= 3) return "spread inside the lamps' outline";
+  const int n = std::max(2, o.validation_every);
+  return fmt::format("every {}{}", n, n % 10 == 2 && n % 100 != 12 ? "nd" : n % 10 == 3 && n % 100 != 13 ? "rd" : "th");
+}
+
 HdrCurveOptions PcaHdrCurveOptions(const PcaHdrCurveCandidate& c, double high) {
   HdrCurveOptions o;
   o.curve = c.curve;
@@ -193,7 +253,7 @@ Result<PcaHdrFit> ChoosePcaHdr(const std::vector<cv::Mat>& radiance,
   if (o.curves.empty() || o.components.empty() || o.resolutions.empty() || o.qualities.empty()) {
     return MakeError(ErrorCode::kInvalidInput, "pca", "no candidates");
   }
-  const std::vector<int> held = HeldOutLamps(radiance.size(), o.validation_every);
+  const std::vector<int> held = ChoiceHeldOutLamps(directions, o);
   PcaHdrFit fit;
   RIG_TRY(ScoreCurves(radiance, directions, held, lamp, o, &fit.candidates));
   for (size_t i = 0; i < fit.candidates.size(); ++i) {

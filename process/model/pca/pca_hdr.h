@@ -37,7 +37,11 @@ struct PcaHdrChoiceOptions {
   // the best's is at most `noise_z` standard errors of that excess, the standard error measured
   // across the lamps held out (paired: both candidates at the same lamps). 0 = the best only.
   double noise_z = 1.0;
-  int validation_every = 6;  // every n-th lamp held out
+  int validation_every = 6;  // one lamp in n held out (HeldOutLamps)
+  // Which lamps are held out: "interior" (spread over the lamps inside the set's outline, so the
+  // fold measures what relighting between the lamps costs, as the off-grid truth does) or
+  // "every" (every n-th from the first, edges included: extrapolation weighs in).
+  std::string held_out = "interior";
   double high = 0.9999;      // the curve's max at this quantile of ρ
   int threads = 2;           // the curves' candidates are scored this many at once
   bool warn_over_budget = true;  // log a warning when no candidate fits the budget
@@ -87,6 +91,17 @@ HdrCurveOptions PcaHdrCurveOptions(const PcaHdrCurveCandidate& curve, double hig
 
 // The lamps a choice holds out: every n-th from the first (n = max(2, every)).
 std::vector<int> HeldOutLamps(size_t lamps, int every);
+// The lamps inside the outline of the set: those surrounded by neighbours (the lamps within
+// twice the distance to its nearest), no gap between their bearings on the sphere wider than
+// 135°. An edge row leaves a gap of about 180° however the outline bends (a grid's row of
+// constant v bows inwards by most of a step over 90° of h), a corner more.
+std::vector<int> InteriorLamps(const std::vector<Vec3>& directions);
+// The held-out lamps of `options.held_out`: for "interior", ceil(n ÷ every) lamps spread evenly
+// over the interior ones (all of them when fewer; every n-th when fewer than 3 are interior).
+std::vector<int> ChoiceHeldOutLamps(const std::vector<Vec3>& directions,
+                                    const PcaHdrChoiceOptions& options);
+// What ChoiceHeldOutLamps took, in words: "spread inside the lamps' outline" | "every 6th".
+std::string HeldOutRuleName(const std::vector<Vec3>& directions, const PcaHdrChoiceOptions& options);
 // A model's squared error of ρ against the measured ρ (radiance ÷ lamp) at each held-out lamp,
 // as a share of the measured ρ's squares over all of them: the shares sum to the relative RMS
 // error squared. The maps' non-finite samples are left out of both.

@@ -42,6 +42,7 @@ Result<FamilyCandidate> ScoreHarmonic(const std::vector<cv::Mat>& radiance,
   c.family = "harmonic";
   const int terms = static_cast<int>(fit.model.basis().size());
   c.what = fmt::format("{} order {}, {} terms", fit.model.basis().name(), fit.selection.order, terms);
+  c.size = fit.selection.order;
   c.bytes_per_pixel = static_cast<double>(terms) * 3 * value_bytes;
   c.per_lamp = HeldOutErrors(*WrapHarmonic(std::move(fit.model)), radiance, directions, held, lamp);
   c.held_out_relative = RelativeOf(c.per_lamp);
@@ -58,14 +59,16 @@ Result<SessionFamilyChoice> ChooseSessionFamily(const std::vector<cv::Mat>& radi
                                                 const PcaHdrChoiceOptions& pca) {
   const auto t0 = Clock::now();
   SessionFamilyChoice out;
-  const std::vector<int> held = HeldOutLamps(radiance.size(), pca.validation_every);
+  const std::vector<int> held = ChoiceHeldOutLamps(directions, pca);
   out.held_out = static_cast<int>(held.size());
+  out.held_out_rule = HeldOutRuleName(directions, pca);
   const auto tp = Clock::now();
   RIG_ASSIGN_OR_RETURN(out.pca, ChoosePcaHdr(radiance, directions, lamp, pca));
   const PcaHdrCandidate& p = out.pca.candidates[out.pca.chosen];
   out.pca_candidate.family = "pca";
   out.pca_candidate.what = fmt::format("{}, {} components, {}x{} grid, JPEG q{}", p.curve,
                                        p.components, p.resolution, p.resolution, p.quality);
+  out.pca_candidate.size = p.components;
   out.pca_candidate.bytes_per_pixel = p.bytes_per_pixel;
   out.pca_candidate.per_lamp = p.per_lamp;
   out.pca_candidate.held_out_relative = p.held_out_relative;
@@ -100,12 +103,12 @@ Result<SessionFamilyChoice> ChooseSessionFamily(const std::vector<cv::Mat>& radi
 
 std::string SessionFamilyMarkdown(const SessionFamilyChoice& c) {
   std::string md = fmt::format(
-      "## The family\n\nBoth families fitted to the maps without the same {} lamps (every 6th), "
+      "## The family\n\nBoth families fitted to the maps without the same {} lamps ({}), "
       "each making its own choices from the rest, and scored there (relative RMS of linear "
       "reflectance); the smaller model unless the other's lower error is beyond one standard "
       "error of the paired excess across those lamps. {}.\n\n"
       "| family | model | B/px | held-out relative error | excess of its square (± standard "
-      "error) | fit s | |\n|---|---|---|---|---|---|---|\n", c.held_out, c.reason);
+      "error) | fit s | |\n|---|---|---|---|---|---|---|\n", c.held_out, c.held_out_rule, c.reason);
   for (const FamilyCandidate* f : {&c.pca_candidate, &c.harmonic_candidate})
     md += fmt::format("| {} | {} | {:.2f} | {:.4f} | {:.2e} ± {:.2e} | {:.2f} | {} |\n", f->family,
                       f->what, f->bytes_per_pixel, f->held_out_relative, f->excess, f->excess_se,

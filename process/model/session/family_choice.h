@@ -21,6 +21,7 @@ namespace rig {
 struct FamilyCandidate {
   std::string family;  // "pca" | "harmonic"
   std::string what;    // "power1.25, 30 components, 32x32, q100" | "sh order 6, 49 terms"
+  int size = 0;        // components, or the harmonic order
   double bytes_per_pixel = 0;
   double held_out_relative = 0;  // relative RMS of ρ at the lamps held out
   std::vector<double> per_lamp;  // HeldOutErrors
@@ -33,6 +34,7 @@ struct SessionFamilyChoice {
   PcaHdrFit pca;            // the PCA family's own choice (model left empty)
   FamilyCandidate pca_candidate, harmonic_candidate;
   int held_out = 0;         // lamps held out
+  std::string held_out_rule;  // "inside the lamps' outline" | "every 6th"
   std::string reason;       // one sentence
   double time_s = 0;
 };
