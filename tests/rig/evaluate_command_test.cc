@@ -145,6 +145,13 @@ TEST(EvaluateCommand, DryRunWritesEveryMethodAndOrderTheFrontsTheChoiceAndCharts
   EXPECT_THAT(text.str(), HasSubstr("| matte |"));
   EXPECT_THAT(text.str(), HasSubstr("The session's default model is "));
   EXPECT_THAT(text.str(), HasSubstr("**session default**"));
+  // The family choice under both held-out rules, the session's first, each beside the truth.
+  const std::string rules = text.str();
+  const size_t inside = rules.find("| matte | spread inside the lamps' outline (rig process) | 7 |");
+  const size_t every = rules.find("| matte | every 6th | 7 |");
+  EXPECT_NE(inside, std::string::npos) << rules;
+  EXPECT_NE(every, std::string::npos);
+  EXPECT_LT(inside, every);
   // Times are medians of runs (the default three), and the tables and report say so.
   EXPECT_THAT(text.str(), HasSubstr("wall seconds, the median of 3 runs of each"));
   EXPECT_THAT(text.str(), HasSubstr("| fit s (median of 3) |"));
