@@ -20,6 +20,7 @@
 #include "capture/session/session_store.h"
 #include "config/builtin_config.h"
 #include "config/config.h"
+#include "config/console.h"
 #include "config/log.h"
 #include "process/evaluate/evaluate.h"
 #include "process/evaluate/plot.h"
@@ -400,7 +401,9 @@ void SimulatedBracketTrials(const fs::path& main_session, int runs, std::vector<
 std::vector<std::pair<std::string, cv::Mat>> HdrTruths(const EvaluationRequest& request) {
   auto log = Log("evaluate");
   std::vector<fs::path> images;
-  if (fs::is_directory(request.hdr_images)) {
+  if (request.hdr_images.empty()) {
+    log->info("no real HDR images given (--hdr-images): HDR methods on simulated data only");
+  } else if (fs::is_directory(request.hdr_images)) {
     for (const auto& e : fs::directory_iterator(request.hdr_images)) {
       const std::string ext = e.path().extension().string();
       if (ext == ".exr" || ext == ".hdr") images.push_back(e.path());
@@ -432,15 +435,24 @@ HdrTrials RunHdrTrials(const EvaluationRequest& request, const fs::path& main_se
   trials.timing_runs = runs;
   if (truth) SimulatedBracketTrials(main_session, runs, &trials.main);
   const auto truths = HdrTruths(request);
+  const std::vector<int> exposures = request.quick ? std::vector<int>{2, 5} : std::vector<int>{2, 3, 4, 5, 7, 9, 12};
+  const std::vector<double> noises = request.quick ? std::vector<double>{1, 8} : std::vector<double>{0.25, 1, 2, 4, 8, 16};
+  // One step per bracket compared (every method on it): each truth, then the first's sweeps.
+  ProgressTask task("HDR methods", static_cast<int64_t>(truths.size() + exposures.size() + noises.size()));
   for (const auto& [name, truth_image] : truths) {
     const cv::Mat* t_img = &truth_image;
     for (auto& t : CompareHdr(name, BracketFor(*t_img, 7, 1, 11), *t_img, 1, runs)) trials.main.push_back(t);
+    task.Advance(1, name);
     if (name != truths.front().first) continue;
     // The sweeps chart error only (against exposures, against noise): one run each.
-    for (int n : request.quick ? std::vector<int>{2, 5} : std::vector<int>{2, 3, 4, 5, 7, 9, 12})
+    for (int n : exposures) {
       for (auto& t : CompareHdr(name, BracketFor(*t_img, n, 1, 11), *t_img, 1, 1)) trials.exposures.push_back(t);
-    for (double noise : request.quick ? std::vector<double>{1, 8} : std::vector<double>{0.25, 1, 2, 4, 8, 16})
+      task.Advance(1, fmt::format("{}: {} exposures", name, n));
+    }
+    for (double noise : noises) {
       for (auto& t : CompareHdr(name, BracketFor(*t_img, 7, noise, 11), *t_img, noise, 1)) trials.noise.push_back(t);
+      task.Advance(1, fmt::format("{}: noise {:g}x", name, noise));
+    }
   }
   return trials;
 }
@@ -538,7 +550,10 @@ std::string HdrFindings(const HdrTrials& hdr) {
   };
   auto cell = [](const HdrTrial* t) -> std::string {
     if (!t) return "not run";
-    return t->failure.empty() ? fmt::format("{:.4f}", t->log_rms) : "fails (" + t->failure.substr(0, 60) + "...)";
+    if (t->failure.empty()) return fmt::format("{:.4f}", t->log_rms);
+    // The failure's first clause whole (its detail, in parentheses, is in hdr_methods.csv).
+    std::string why = t->failure.substr(0, t->failure.find(" ("));
+    return "fails (" + why + ")";
   };
   const HdrTrial& fewest = hdr.exposures.front();
   findings += fmt::format("- With only {} exposures: ours {}, Debevec {}, Robertson {} (hdr_error_vs_exposures.png).\n",

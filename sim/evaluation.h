@@ -20,8 +20,9 @@ struct EvaluationRequest {
   bool dry_run = false;
   std::string config_path;  // empty: the built-in config/sim.toml (works from any folder)
   int width = 160, height = 120;
-  // Real HDR images (.exr, .hdr) used as HDR truth; a missing folder is a warning.
-  std::filesystem::path hdr_images = "../shared/data/hdr";
+  // Real HDR images (.exr, .hdr) used as HDR truth (docs/data.md names public ones); empty:
+  // none (the synthetic radiance image only); a folder that does not exist is a warning.
+  std::filesystem::path hdr_images;
   bool quick = false;  // fewer scenes and HDR trials
   // Every fit, render and HDR merge timed this many times and the median kept, so that the
   // same machine draws the same charts whatever else it is running.

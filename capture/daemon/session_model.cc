@@ -229,11 +229,13 @@ Status FitSessionModel(const Session& session, const MapStore* maps) {
   if (!st.ok()) log->warn("{}", st.error().ToString());
   log->info("model written file={} order={} terms={} loo_rmse={:.5g} time_s={:.2f}", out.string(),
             fit.selection.order, fit.selection.projector.basis.size(), fit.loo_rmse, fit.time_s);
+  const std::string share = LooRelativeCell(fit.loo_rmse, fit.selection.data_rms);
   ConsoleLine(stdout, fmt::format("model: {} (order {}, {} terms, {:.1f} B/px; leave-one-out RMS "
-                                  "error {:.4g} {}; {:.2f} s)",
+                                  "error {:.4g} {}{}; {:.2f} s)",
                                   out.string(), fit.selection.order,
                                   fit.selection.projector.basis.size(), bpp, fit.loo_rmse,
-                                  FitSpaceUnit(config.process.fit_space), fit.time_s));
+                                  FitSpaceUnit(config.process.fit_space),
+                                  share.empty() ? "" : ", " + share + " of the samples' RMS", fit.time_s));
   return Ok();
 }
 

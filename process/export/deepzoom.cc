@@ -16,6 +16,7 @@
 #include <fmt/format.h>
 #include <opencv2/imgproc.hpp>
 
+#include "config/console.h"
 #include "process/io/jpeg_io.h"
 
 namespace rig {
@@ -116,8 +117,14 @@ Result<DeepZoomReport> WriteDeepZoom(const std::string& folder, const DeepZoomOp
   std::vector<Result<long>> results(planes.size(), MakeError(ErrorCode::kInternal, folder, "not tiled"));
   std::vector<int> levels(planes.size(), 0);
   std::atomic<size_t> next{0};
+  // A bar on a terminal, a line every few seconds elsewhere (the planes of a 24 MP model take
+  // minutes).
+  ProgressTask task("deep-zoom tiles", static_cast<int64_t>(planes.size()));
   auto work = [&] {
-    for (size_t i; (i = next++) < planes.size();) results[i] = TileOne(planes[i], o, &levels[i]);
+    for (size_t i; (i = next++) < planes.size();) {
+      results[i] = TileOne(planes[i], o, &levels[i]);
+      task.Advance(1, planes[i].filename().string());
+    }
   };
   std::vector<std::thread> pool;
   for (int t = 1; t < std::max(1, o.threads); ++t) pool.emplace_back(work);

@@ -17,7 +17,7 @@ int RunCalibrateLights(int argc, char** argv) {
   LightCalibrationRequest rq;
   std::string log_level;
   std::vector<std::string> sphere_args;
-  app.add_option("source", rq.source, "a session folder");
+  app.add_option("SESSION", rq.source, "a session folder");
   app.add_option("--lp", rq.lp, "an .lp capture (its directions are compared, then replaced)");
   app.add_option("--images", rq.images, "a folder of images (JPEG, PNG, TIFF), one lamp each");
   app.add_option("--sphere", sphere_args, "a chrome sphere's circle CX,CY,R in pixels (repeat for "

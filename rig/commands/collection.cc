@@ -14,6 +14,7 @@
 
 #include "capture/session/collection_report.h"
 #include "capture/session/session_store.h"
+#include "config/did_you_mean.h"
 #include "rig/commands/command.h"
 
 namespace rig {
@@ -26,6 +27,26 @@ fs::path SelfExe() {
   std::error_code ec;
   fs::path p = fs::read_symlink("/proc/self/exe", ec);
   return ec ? fs::path("rig") : p;
+}
+
+// The rig the jobs run, for config.yaml: "rig" when the first rig on $PATH is this executable
+// (an installed rig: the collection keeps working when rig is upgraded or moved with PATH),
+// else this executable's absolute path (a build tree's rig, which PATH does not find).
+std::string RigForJobs() {
+  const fs::path self = SelfExe();
+  const char* path = std::getenv("PATH");
+  std::string dirs = path ? path : "";
+  for (size_t start = 0; start <= dirs.size();) {
+    const size_t end = std::min(dirs.find(':', start), dirs.size());
+    const std::string dir = dirs.substr(start, end - start);
+    start = end + 1;
+    if (dir.empty()) continue;
+    std::error_code ec;
+    const fs::path candidate = fs::path(dir) / "rig";
+    if (!fs::is_regular_file(candidate, ec) || access(candidate.c_str(), X_OK) != 0) continue;
+    return fs::equivalent(candidate, self, ec) ? "rig" : self.string();
+  }
+  return self.string();
 }
 
 // share/rig beside the executable: <prefix>/bin/rig -> <prefix>/share/rig once installed,
@@ -140,7 +161,7 @@ int RunInit(int argc, char** argv) {
       "  evaluate_lp: {{threads: 2, mem_mb: 2000}}\n"
       "  render: {{mem_mb: 300}}\n"
       "  view: {{mem_mb: 300}}\n",
-      YamlQuote(fs::absolute(root).lexically_normal().string()), YamlQuote(SelfExe().string()),
+      YamlQuote(fs::absolute(root).lexically_normal().string()), YamlQuote(RigForJobs()),
       YamlList(formats), YamlList(lp_fit_args), no_eval_sessions ? "false" : "true",
       YamlList(eval_args), no_eval_lp ? "false" : "true", lp_every);
   const std::string sf = fmt::format(
@@ -201,6 +222,11 @@ int RunCollection(int argc, char** argv) {
   if (sub == "init") return RunInit(argc - 1, argv + 1);
   if (sub == "report") return RunReport(argc - 1, argv + 1);
   const bool help = sub == "--help" || sub == "-h";
+  if (!help && !sub.empty()) {
+    const std::string hint = DidYouMean(sub, {"init", "report"});
+    std::fprintf(stderr, "rig collection: unknown subcommand '%s'%s\n", sub.c_str(),
+                 hint.empty() ? "" : (" (did you mean '" + hint + "'?)").c_str());
+  }
   std::fprintf(help ? stdout : stderr,
                "Usage: rig collection init DIR --root ROOT [options]   a Snakemake collection folder\n"
                "       rig collection report DIR                        the table over its entries\n"

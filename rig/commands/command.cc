@@ -51,7 +51,9 @@ std::optional<int> ParseCommandLine(CLI::App& app, int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     const std::string unknown = UnknownOptionHint(app, argc, argv);
     if (!unknown.empty()) {
-      std::fprintf(stderr, "rig %s: %s\nRun with --help for more information.\n", argv[0], unknown.c_str());
+      // The command's own name ("rig collection init"), not just its word on the command line.
+      const std::string name = app.get_name().empty() ? std::string("rig ") + argv[0] : app.get_name();
+      std::fprintf(stderr, "%s: %s\nRun with --help for more information.\n", name.c_str(), unknown.c_str());
       return 2;
     }
     app.exit(e);

@@ -30,7 +30,8 @@ int RunEvaluate(int argc, char** argv) {
                  "built-in config/sim.toml)");
   app.add_option("--width", request.width, "simulated image width (default 160)")->check(CLI::Range(16, 4096));
   app.add_option("--height", request.height, "simulated image height (default 120)")->check(CLI::Range(16, 4096));
-  app.add_option("--hdr-images", hdr_dir, "folder of real HDR images (.exr, .hdr) used as HDR truth");
+  app.add_option("--hdr-images", hdr_dir, "folder of real HDR images (.exr, .hdr) used as HDR truth (default: none, the synthetic "
+                 "radiance image only; docs/data.md names public ones)");
   app.add_flag("--quick", request.quick, "fewer scenes and HDR trials (for tests)");
   app.add_option("--timing-runs", request.timing_runs,
                  "time every fit, render and HDR merge this many times and chart the median "

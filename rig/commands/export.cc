@@ -68,7 +68,7 @@ int RunExport(int argc, char** argv) {
                "rig export"};
   ExportArgs a;
   app.add_option("MODEL", a.source,
-                 "a model (EXR, relight folder, .ptm, .rti) or a session folder (its model)")
+                 "a model (EXR, relight folder, PCA folder, .ptm, .rti) or a session folder (its model)")
       ->required();
   app.add_option("--format", a.format,
                  "relight, ptm or rti; lp: a SESSION's radiance maps as 8-bit sRGB images + dirs.lp")

@@ -24,7 +24,7 @@ int RunNormals(int argc, char** argv) {
   bool plain = false, far = false;
   double lamp_mm = -1, field_mm = 0, surface_mm = std::nan("");
   int threads = 2;
-  app.add_option("source", source, "a session folder or a model (rendered at 37 directions)");
+  app.add_option("MODEL", source, "a model or a session folder (rendered at 37 directions)");
   app.add_option("--lp", lp, "an .lp capture");
   app.add_option("--lights", lights, "an .lp whose directions replace the capture's (e.g. from "
                  "rig calibrate-lights), same image count and order");

@@ -229,7 +229,7 @@ Result<RelightRequest> RequestFromArgs(const RenderArgs& a) {
   const RenderFileKind kind = RenderFileKindOf(a.out);
   const bool sweep = !request.sweep.empty();
   if (kind == RenderFileKind::kUnknown || (!sweep && kind == RenderFileKind::kVideo)) {
-    return Bad(a.out, !sweep ? "output must end in .exr, .png, .jpg or .tif"
+    return Bad(a.out, !sweep ? "output must end in .exr, .png, .jpg, .tif or .tiff"
                              : "a sweep's output must end in .avi (video), or .png/.exr (frames only)");
   }
   {

@@ -165,6 +165,13 @@ TEST(CommandLine, MistypedCommandsAndOptionsAreAnsweredWithTheOneMeant) {
   // A subcommand's options count as known (collection init's).
   auto sub = RunRig("collection init --help");
   EXPECT_EQ(sub.status, 0) << sub.output;
+  // A mistyped subcommand, and a mistyped option of a subcommand named with its command.
+  auto inti = RunRig("collection inti some-dir");
+  EXPECT_EQ(inti.status, 2);
+  EXPECT_THAT(inti.output, HasSubstr("unknown subcommand 'inti' (did you mean 'init'?)"));
+  auto subopt = RunRig("collection init some-dir --rot /tmp");
+  EXPECT_EQ(subopt.status, 2);
+  EXPECT_THAT(subopt.output, HasSubstr("rig collection init: unknown option '--rot' (did you mean '--root'?)"));
 }
 
 // rig --help lists every command once, under its group, names aligned in one column.

@@ -55,6 +55,12 @@ Result<std::vector<MapListEntry>> ReadMapList(const std::string& list) {
 
 namespace {
 
+// " (3.21% of the samples' RMS)": a LOO error's scale, for the one-line summaries.
+std::string LooScale(double loo_rmse, double data_rms) {
+  const std::string cell = LooRelativeCell(loo_rmse, data_rms);
+  return cell.empty() ? "" : " (" + cell + " of the samples' RMS)";
+}
+
 // A radiance map and its validity (from the HDR merge's "flags" channel, when present).
 Status LoadRadiance(const std::string& path, cv::Mat* bgr, cv::Mat* valid) {
   RIG_ASSIGN_OR_RETURN(ExrImage img, ReadExr(path));
@@ -129,9 +135,10 @@ Result<MapFitResult> FitNearLampMaps(const MapFitRequest& req, const FitInput& i
       r.near_tile_px > 0 ? fmt::format("{} px tiles ({} projectors)", r.near_tile_px, r.projectors)
                          : std::string("one direction per lamp"));
   result.summary = fmt::format(
-      "wrote {}{}: basis {} order {} ({} terms), LOO RMSE {:.5g}; {}; {:.2f} s", req.out,
+      "wrote {}{}: basis {} order {} ({} terms), LOO RMSE {:.5g}{}; {}; {:.2f} s", req.out,
       in_memory ? "" : " (streamed)", BasisKindName(req.options.basis), r.selection.order,
-      r.selection.projector.basis.size(), r.loo_rmse, near, r.time_s);
+      r.selection.projector.basis.size(), r.loo_rmse, LooScale(r.loo_rmse, r.selection.data_rms),
+      near, r.time_s);
   result.report = fmt::format(
       "# Model fitted from {}\n\n{} maps {}x{}; basis {}, chosen order {} ({} terms), "
       "leave-one-out RMS error {:.5g} (the selection's own estimate), {} of the samples' "
@@ -171,9 +178,10 @@ Result<MapFitResult> FitMaps(const MapFitRequest& req) {
     StreamFitInput sin = StreamInputOf(input, paths);
     RIG_ASSIGN_OR_RETURN(auto r, FitModelStreaming(sin, req.options, req.out, req.pixel_type));
     result.streamed = true;
-    result.summary = fmt::format("wrote {} (streamed): basis {} order {} ({} terms), LOO RMSE {:.5g}",
+    result.summary = fmt::format("wrote {} (streamed): basis {} order {} ({} terms), LOO RMSE {:.5g}{}",
                                  req.out, BasisKindName(req.options.basis), r.selection.order,
-                                 r.selection.projector.basis.size(), r.loo_rmse);
+                                 r.selection.projector.basis.size(), r.loo_rmse,
+                                 LooScale(r.loo_rmse, r.selection.data_rms));
     return result;
   }
   {
@@ -207,11 +215,12 @@ Result<MapFitResult> FitMaps(const MapFitRequest& req) {
   if (!req.out.empty()) RIG_TRY(SaveModel(req.out, fitted.model, req.pixel_type));
   const auto& m = fitted.model;
   result.summary = fmt::format(
-      "wrote {}: basis {} order {} ({} terms/channel), method {}, space {}, LOO RMSE {:.5g}, "
-      "condition {:.3g}, flagged pixels {}, {:.2f} s",
+      "wrote {}: basis {} order {} ({} terms/channel), method {}, space {}, LOO RMSE {:.5g}{}, "
+      "condition {}, flagged pixels {}, {:.2f} s",
       req.out, m.basis().name(), m.basis().order(), m.basis().size(),
       FitMethodName(req.options.method), FitSpaceName(req.options.transform.space),
-      m.info().loo_rmse, m.info().condition, m.info().flagged_pixels, fitted.fit_time_s);
+      m.info().loo_rmse, LooScale(m.info().loo_rmse, fitted.selection.data_rms),
+      std::isfinite(m.info().condition) ? fmt::format("{:.3g}", m.info().condition) : "ill-conditioned", m.info().flagged_pixels, fitted.fit_time_s);
   return result;
 }
 
