@@ -645,8 +645,10 @@ std::string ConfigDiagnostic::ToString() const {
 
 Error ConfigResult::AsError() const {
   std::string msg;
-  for (size_t i = 0; i < diagnostics.size(); ++i)
-    msg += (i ? "\n" : "") + diagnostics[i].ToString();
+  for (size_t i = 0; i < diagnostics.size(); ++i) {
+    if (i) msg += '\n';
+    msg += diagnostics[i].ToString();
+  }
   return Error{ErrorCode::kInvalidInput, msg, ""};
 }
 
