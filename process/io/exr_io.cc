@@ -60,6 +60,19 @@ bool IsStandardAttribute(const std::string& name) {
 
 // The OpenEXR global thread pool: OpenEXR uses it for line-block (de)compression. Setting it
 // is not free (threads are created), so it is changed only when the count changes.
+// OpenEXR sizes its line buffers and chunk-offset tables from the header's data window before
+// it reads a pixel: a hostile header claiming a window of 2^31 columns makes the InputFile
+// constructor allocate and clear gigabytes (found by fuzz_model as an 11 s timeout). OpenEXR's
+// own limit refuses such a header in its sanity check; the bound is this reader's own
+// (kMaxExrSide, 65536 per side), above any camera's frame.
+void ApplyExrSizeLimits() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    Imf::Header::setMaxImageSize(static_cast<int>(kMaxExrSide), static_cast<int>(kMaxExrSide));
+    Imf::Header::setMaxTileSize(static_cast<int>(kMaxExrSide), static_cast<int>(kMaxExrSide));
+  });
+}
+
 void EnsureGlobalThreads(int threads) {
   static std::mutex mutex;
   static int current = -1;
@@ -325,6 +338,7 @@ Result<std::map<std::string, std::string>> ReadExrAttributes(const std::string& 
   std::error_code ec;
   if (!fs::exists(path, ec)) return MakeError(ErrorCode::kNotFound, path, "no such file");
   RIG_TRY(CheckHeaderSizes(path));
+  ApplyExrSizeLimits();
   try {
     Imf::InputFile in(path.c_str(), 1);
     std::map<std::string, std::string> out;
@@ -346,6 +360,7 @@ Result<ExrImage> ReadExr(const std::string& path, int threads) {
     return MakeError(ErrorCode::kNotFound, path, "no such file");
   }
   RIG_TRY(CheckHeaderSizes(path));
+  ApplyExrSizeLimits();
   try {
     threads = std::max(threads, 1);
     EnsureGlobalThreads(threads);

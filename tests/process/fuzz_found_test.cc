@@ -51,8 +51,9 @@ TEST(FuzzFound, BracketListNamingAFolderIsBadInputNotAnAbort) {
   fs::remove_all(dir);
 }
 
-// The EXR reader bounds the data window before it allocates a plane per channel: beyond 65536
-// per side (or 2^28 pixels) is refused as a damaged file (exit 2), not allocated.
+// The EXR reader bounds the data window before it allocates a plane per channel or OpenEXR its
+// line buffers (fuzz_model found a 2^31-wide header taking 11 s in the InputFile constructor):
+// beyond 65536 per side (or 2^28 pixels) is refused as a damaged file (exit 2), not allocated.
 TEST(FuzzFound, ExrWiderThanTheBoundIsRefusedBeforeAllocating) {
   const fs::path dir = TempDir();
   ExrImage wide;
@@ -64,7 +65,9 @@ TEST(FuzzFound, ExrWiderThanTheBoundIsRefusedBeforeAllocating) {
   auto r = ReadExr((dir / "wide.exr").string());
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.error().ExitCode(), 2);
-  EXPECT_NE(r.error().message.find("70000x1"), std::string::npos) << r.error().ToString();
+  // Refused by OpenEXR's own header check (the limit rig sets, process/io/exr_io.cc), which
+  // runs before the constructor sizes its line buffers from the window.
+  EXPECT_NE(r.error().message.find("maximum width of 65536"), std::string::npos) << r.error().ToString();
 
   ExrImage fine = wide;
   fine.width = 65536;
