@@ -13,6 +13,11 @@ function(rig_warnings target)
       $<$<CXX_COMPILER_ID:GNU>:-Wno-stringop-overflow> $<$<CXX_COMPILER_ID:GNU>:-Wno-stringop-overread>
       $<$<CXX_COMPILER_ID:GNU>:-Wno-array-bounds>)
   endif()
+  if(RIG_UNITY_BUILD)
+    # A source compiled inside a batch is no longer GCC's "main file", so a class of it with
+    # a field of a file-local (anonymous-namespace) type is reported as if it were in a header.
+    target_compile_options(${target} PRIVATE $<$<CXX_COMPILER_ID:GNU>:-Wno-subobject-linkage>)
+  endif()
   if(RIG_WERROR)
     target_compile_options(${target} PRIVATE -Werror)
   endif()
@@ -35,9 +40,10 @@ function(rig_add_library name)
   target_include_directories(${name} PUBLIC ${PROJECT_SOURCE_DIR} ${PROJECT_BINARY_DIR})
   target_link_libraries(${name} PUBLIC ${ARG_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
   rig_warnings(${name})
-  # RIG_UNITY_BUILD (the sanitizer build, scripts/test-sanitize.sh): a library's sources
-  # compiled in batches, each header parsed and each template instantiated once per batch.
-  # File-local names must therefore be unique within a library.
+  # RIG_UNITY_BUILD (default ON; docs/build.md): a library's sources compiled in batches, each
+  # template instantiated and each inline function of the heavy headers compiled once per
+  # batch instead of once per source. File-local names must therefore be unique within a
+  # library (a collision is a compile error, so every build catches it).
   if(RIG_UNITY_BUILD)
     set_target_properties(${name} PROPERTIES UNITY_BUILD ON UNITY_BUILD_BATCH_SIZE ${RIG_UNITY_BATCH})
   endif()
