@@ -6,8 +6,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 start=$(date +%s)
-echo "== build: the rig executable only (165 steps; a first build takes about 16 CPU-minutes,"
-echo "   8 minutes on a quiet 2-core machine, seconds after that; scripts/test.sh builds the rest)"
+echo "== build: the rig executable only (37 steps; a first build takes about 4 minutes on a quiet"
+echo "   2-core machine, seconds after that; scripts/test.sh builds the rest)"
 bash scripts/build.sh rig
 echo "== built in $(( $(date +%s) - start )) s"
 rig=build/rig/rig

@@ -1,6 +1,7 @@
 // Leave-one-out of every family on a multi-light capture, refitting without each image.
 #include "process/evaluate/rti_loo.h"
 #include "config/atomic_file.h"
+#include "config/console.h"
 #include "process/io/image_io.h"
 
 #include <chrono>
@@ -40,14 +41,23 @@ std::string Protocol(int folds, int lights) {
                          : fmt::format("{} of {} refitted", folds, lights);
 }
 
+// A fold counted done when its prediction is made (or it failed).
+struct FoldDone {
+  ProgressTask& task;
+  int held;
+  ~FoldDone() { task.Advance(1, fmt::format("image {} held out", held + 1)); }
+};
+
 // The PCA family with the choice inside every fold.
 Result<RtiLooRow> PcaRow(const RtiCapture& cap, const PcaChoiceOptions& co,
                          const std::vector<int>& folds, const std::string& setting,
                          const std::string& tmp) {
   const int kmax = LargestCandidate(co);
   RIG_ASSIGN_OR_RETURN(PcaComponents full, ComputePcaComponents(cap.samples, co.base, kmax));
+  ProgressTask task("pca refitted without each held-out image", static_cast<int64_t>(folds.size()));
   auto score = LeaveOneOut(cap.samples, folds, [&](const LightSamples& fold, int held,
                                                    const Vec3& light) -> Result<FoldPrediction> {
+    const FoldDone counted{task, held};
     // Imputing censored samples reads every light of a pixel, the held-out one too: the
     // fold's components are then computed from the fold; otherwise they are exactly the kept
     // covariance without the held-out light's rows and columns.
@@ -86,8 +96,10 @@ Result<RtiLooRow> NeuralRow(const RtiCapture& cap, const std::vector<int>& folds
                             const std::string& tmp, int threads) {
   NeuralOptions no;
   no.threads = threads;
-  auto score = LeaveOneOut(cap.samples, folds, [&](const LightSamples& fold, int,
+  ProgressTask task("neural refitted without each held-out image", static_cast<int64_t>(folds.size()));
+  auto score = LeaveOneOut(cap.samples, folds, [&](const LightSamples& fold, int held,
                                                    const Vec3& light) -> Result<FoldPrediction> {
+    const FoldDone counted{task, held};
     RIG_ASSIGN_OR_RETURN(NeuralModel m, FitNeural(fold, no));
     std::filesystem::remove_all(tmp);
     RIG_TRY(m.Save(tmp));
@@ -205,9 +217,14 @@ Result<std::vector<RtiLooRow>> RtiLooTable(const RtiCapture& cap, const RtiLooOp
   const std::string tmp =
       (fs::temp_directory_path() / fmt::format("rig-loo-{}", ::getpid())).string();
   std::vector<RtiLooRow> rows;
+  // One step a row (the three PCA rows, the harmonic bases, the neural model), each row's
+  // folds shown inside it.
+  ProgressTask table("leave-one-out table", 3 + (o.harmonic ? 1 : 0) + (o.neural ? 1 : 0));
   auto add = [&](RtiLooRow r) {
     if (on_row) on_row(r);
+    const std::string done = r.family + " done";
     rows.push_back(std::move(r));
+    if (rows.size() <= 3) table.Advance(1, done);
   };
   const int lights = cap.samples.lights();
   const auto folds = Folds(lights, o.every);
@@ -255,6 +272,7 @@ Result<std::vector<RtiLooRow>> RtiLooTable(const RtiCapture& cap, const RtiLooOp
   if (o.harmonic) {
     RIG_ASSIGN_OR_RETURN(auto hrows, HarmonicRows(cap, tmp));
     for (auto& r : hrows) add(r);
+    table.Advance(1, "harmonic done");
   }
   if (o.neural) {
     RIG_ASSIGN_OR_RETURN(RtiLooRow r, NeuralRow(cap, Folds(lights, o.neural_every), tmp, o.threads));

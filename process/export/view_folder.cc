@@ -4,11 +4,14 @@
 #include <cmath>
 #include <filesystem>
 #include <limits>
+#include <memory>
+#include <string>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "config/atomic_file.h"
+#include "config/console.h"
 #include "process/export/convert.h"
 #include "process/export/deepzoom.h"
 #include "process/export/load_any.h"
@@ -60,6 +63,26 @@ nlohmann::json WardDisplay(const ReflectanceModel& model, const Vec3& light, dou
           {"luminance_rgb", {w[2], w[1], w[0]}}};
 }
 
+// The conversion's stages (refit, comparison) as progress tasks, one a stage, shown as every
+// long step is (a bar on a terminal, a line every few seconds elsewhere).
+class StageProgress {
+ public:
+  LightProgress Callback() {
+    return [this](const char* stage, size_t done, size_t total) {
+      if (!task_ || stage_ != stage) {
+        task_.reset();
+        stage_ = stage;
+        task_ = std::make_unique<ProgressTask>(stage_, static_cast<int64_t>(total));
+      }
+      task_->Set(static_cast<int64_t>(done));
+    };
+  }
+
+ private:
+  std::string stage_;
+  std::unique_ptr<ProgressTask> task_;
+};
+
 // A model not in relight's web format: converted to it in `out` (as rig export does), read
 // back and compared with the source; *model, *lights, *gain and *how receive what the page needs.
 Status ConvertForView(const std::string& path, const std::string& ext, int quality,
@@ -68,6 +91,7 @@ Status ConvertForView(const std::string& path, const std::string& ext, int quali
   std::unique_ptr<ReflectanceModel>& model = *model_out;
   std::vector<Vec3>& lights = *lights_out;
   RelightTarget target;
+  StageProgress progress;
   Result<Conversion> conversion = MakeError(ErrorCode::kInternal, "view", "not converted");
   if (ext == ".exr") {
     auto m = LoadModel(path);
@@ -76,7 +100,7 @@ Status ConvertForView(const std::string& path, const std::string& ext, int quali
     target.type = family.rfind("ptm", 0) == 0 ? RelightType::kPtm : RelightType::kHsh;
     target.terms = target.type == RelightType::kPtm ? 6 : (family == "hsh" && m->basis().size() <= 4 ? 4 : 9);
     lights = m->info().lamp_directions;
-    conversion = ConvertToRelight(*m, target);
+    conversion = ConvertToRelight(*m, target, progress.Callback());
     model = WrapHarmonic(std::move(*m));
   } else {
     auto m = LoadAnyModel(path);
@@ -98,7 +122,7 @@ Status ConvertForView(const std::string& path, const std::string& ext, int quali
       target.type = RelightType::kHsh;
       target.terms = 9;
     }
-    conversion = ConvertToRelight(*model, target);
+    conversion = ConvertToRelight(*model, target, {}, progress.Callback());
   }
   if (!conversion.ok()) return conversion.error();
   WebWriteOptions o;
@@ -108,7 +132,7 @@ Status ConvertForView(const std::string& path, const std::string& ext, int quali
   if (!back.ok()) return back.error().Within("reading back what was written");
   const auto reread = WrapRelight(std::move(*back), out);
   std::vector<Vec3> at = lights.empty() ? HemisphereDirections() : lights;
-  const double psnr = RenderPsnrDb(*model, *reread, at, conversion->gain);
+  const double psnr = RenderPsnrDb(*model, *reread, at, conversion->gain, progress.Callback());
   *gain = conversion->gain;
   *how = fmt::format("{}; as written, {} against the source over {} lights (8-bit sRGB)", conversion->how,
                     std::isinf(psnr) ? std::string("identical") : fmt::format("{:.2f} dB", psnr), at.size());

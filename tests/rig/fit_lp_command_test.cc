@@ -271,8 +271,15 @@ TEST(FitLpCommand, BadLightFilesAndImagesAreRefusedNamingTheLine) {
 TEST(EvaluateLpCommand, EveryFamilyIsRefittedPerHeldOutImageAndCharted) {
   const std::string dir = testing::FreshTempDir("evaluate-lp");
   const std::string lp = WriteCapture(dir, 32, 24);
+  // Progress lines as under Snakemake or nohup (off a terminal), here at every step: the
+  // table's rows and each row's folds.
+  setenv("RIG_PROGRESS_EVERY_S", "0.000001", 1);
   auto r = RunRig("evaluate --lp " + lp + " --lp-every 12 --out " + dir + "/report");
+  setenv("RIG_PROGRESS_EVERY_S", "100000", 1);  // as tests/test_env.cc sets it
   ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("progress: pca refitted without each held-out image 3/3")) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("progress: neural refitted without each held-out image")) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("progress: leave-one-out table")) << r.output;
   std::ifstream f(dir + "/report/rti-loo.md");
   const std::string md((std::istreambuf_iterator<char>(f)), {});
   for (const char* family : {"**pca-bilinear**", "| ptm |", "| hsh |", "| sh |", "| neural |"})
