@@ -277,6 +277,7 @@ Result<std::vector<RtiLooRow>> RtiLooTable(const RtiCapture& cap, const RtiLooOp
   if (o.neural) {
     RIG_ASSIGN_OR_RETURN(RtiLooRow r, NeuralRow(cap, Folds(lights, o.neural_every), tmp, o.threads));
     add(r);
+    table.Advance(1, "neural done");
   }
   return rows;
 }

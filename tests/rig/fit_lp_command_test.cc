@@ -279,7 +279,7 @@ TEST(EvaluateLpCommand, EveryFamilyIsRefittedPerHeldOutImageAndCharted) {
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_THAT(r.output, HasSubstr("progress: pca refitted without each held-out image 3/3")) << r.output;
   EXPECT_THAT(r.output, HasSubstr("progress: neural refitted without each held-out image")) << r.output;
-  EXPECT_THAT(r.output, HasSubstr("progress: leave-one-out table")) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("progress: leave-one-out table 5/5 (100%), neural done")) << r.output;
   std::ifstream f(dir + "/report/rti-loo.md");
   const std::string md((std::istreambuf_iterator<char>(f)), {});
   for (const char* family : {"**pca-bilinear**", "| ptm |", "| hsh |", "| sh |", "| neural |"})
