@@ -15,6 +15,9 @@
 #include <unistd.h>
 
 #include "process/evaluate/plot.h"
+#include "process/export/lp_choice.h"
+#include "process/export/relight_coefficients.h"
+#include "process/export/relight_files.h"
 #include "process/model/any/load_model.h"
 #include "process/model/holdout.h"
 #include "process/model/neural/neural.h"
@@ -49,12 +52,17 @@ struct FoldDone {
 };
 
 // The PCA family with the choice inside every fold.
+// `across_families`: the default's choice, PCA beside relight's bases in 8-bit planes
+// (FitLpAuto); otherwise the PCA family's own.
 Result<RtiLooRow> PcaRow(const RtiCapture& cap, const PcaChoiceOptions& co,
                          const std::vector<int>& folds, const std::string& setting,
-                         const std::string& tmp) {
+                         const std::string& tmp, bool across_families = false) {
   const int kmax = LargestCandidate(co);
   RIG_ASSIGN_OR_RETURN(PcaComponents full, ComputePcaComponents(cap.samples, co.base, kmax));
-  ProgressTask task("pca refitted without each held-out image", static_cast<int64_t>(folds.size()));
+  ProgressTask task(across_families ? "the default refitted without each held-out image"
+                                    : "pca refitted without each held-out image",
+                    static_cast<int64_t>(folds.size()));
+  size_t basis_folds = 0;
   auto score = LeaveOneOut(cap.samples, folds, [&](const LightSamples& fold, int held,
                                                    const Vec3& light) -> Result<FoldPrediction> {
     const FoldDone counted{task, held};
@@ -67,23 +75,44 @@ Result<RtiLooRow> PcaRow(const RtiCapture& cap, const PcaChoiceOptions& co,
     } else {
       comps = PcaComponentsWithout(full, {held}, kmax);
     }
-    RIG_ASSIGN_OR_RETURN(PcaAutoFit fit, FitPcaAuto(fold, &comps, co));
     std::filesystem::remove_all(tmp);  // no planes of a larger fold's model left behind
-    RIG_TRY(fit.model.Save(tmp));
+    if (across_families) {
+      RIG_ASSIGN_OR_RETURN(LpAutoFit fit, FitLpAuto(fold, &comps, co));
+      RIG_TRY(fit.model->Save(tmp));
+      if (fit.choice.basis_chosen >= 0) {
+        ++basis_folds;
+        RIG_ASSIGN_OR_RETURN(RelightCoefficients back, ReadRelightWeb(tmp));
+        cv::Mat encoded = RenderRelight(back, light);
+        encoded *= 1.0 / 255.0;  // relight's values are codes
+        return FoldPrediction{encoded, FolderBytes(tmp)};
+      }
+    } else {
+      RIG_ASSIGN_OR_RETURN(PcaAutoFit fit, FitPcaAuto(fold, &comps, co));
+      RIG_TRY(fit.model.Save(tmp));
+    }
     RIG_ASSIGN_OR_RETURN(PcaModel back, PcaModel::Load(tmp));
     return FoldPrediction{back.Render(light), FolderBytes(tmp)};
   });
   if (!score.ok()) return score.error();
   const auto t0 = Clock::now();
-  RIG_ASSIGN_OR_RETURN(PcaAutoFit fit, FitPcaAuto(cap.samples, nullptr, co));
   RtiLooRow row;
   row.family = "pca-bilinear";
   // What the same choice takes on every image, as `rig fit` would.
-  const PcaOptions& chosen = fit.choice.options;
-  const size_t n_candidates = fit.choice.candidates.size();
-  row.setting = fmt::format("{}; all images: k {}, {}x{} grid, q{} (of {} candidate{})", setting,
-                            chosen.components, chosen.grid_resolution, chosen.grid_resolution,
-                            chosen.jpeg_quality, n_candidates, n_candidates == 1 ? "" : "s");
+  if (across_families) {
+    RIG_ASSIGN_OR_RETURN(LpAutoFit fit, FitLpAuto(cap.samples, nullptr, co));
+    const size_t n = fit.choice.pca.candidates.size() + fit.choice.bases.size();
+    if (fit.choice.basis_chosen >= 0)
+      row.family = RelightTypeName(fit.choice.bases[fit.choice.basis_chosen].target.type);
+    row.setting = fmt::format("{}; all images: {} (of {} candidates); a basis in {} of {} folds",
+                              setting, LpChosenWords(fit.choice), n, basis_folds, folds.size());
+  } else {
+    RIG_ASSIGN_OR_RETURN(PcaAutoFit fit, FitPcaAuto(cap.samples, nullptr, co));
+    const PcaOptions& chosen = fit.choice.options;
+    const size_t n_candidates = fit.choice.candidates.size();
+    row.setting = fmt::format("{}; all images: k {}, {}x{} grid, q{} (of {} candidate{})", setting,
+                              chosen.components, chosen.grid_resolution, chosen.grid_resolution,
+                              chosen.jpeg_quality, n_candidates, n_candidates == 1 ? "" : "s");
+  }
   row.protocol = Protocol(static_cast<int>(folds.size()), cap.samples.lights());
   row.psnr_mean_mse_db = score->psnr_mean_mse_db;
   row.psnr_median_db = score->psnr_median_db;
@@ -222,9 +251,7 @@ Result<std::vector<RtiLooRow>> RtiLooTable(const RtiCapture& cap, const RtiLooOp
   ProgressTask table("leave-one-out table", 3 + (o.harmonic ? 1 : 0) + (o.neural ? 1 : 0));
   auto add = [&](RtiLooRow r) {
     if (on_row) on_row(r);
-    const std::string done = r.family + " done";
     rows.push_back(std::move(r));
-    if (rows.size() <= 3) table.Advance(1, done);
   };
   const int lights = cap.samples.lights();
   const auto folds = Folds(lights, o.every);
@@ -240,10 +267,11 @@ Result<std::vector<RtiLooRow>> RtiLooTable(const RtiCapture& cap, const RtiLooOp
     RIG_ASSIGN_OR_RETURN(RtiLooRow r, PcaRow(cap, o.choice, folds,
                                              fmt::format("default: auto within {:.1f} B/px",
                                                          o.choice.max_bytes_per_pixel),
-                                             tmp));
+                                             tmp, true));
     r.is_default = true;
-    r.label = fmt::format("rig default (pca, <= {:.1f} B/px)", o.choice.max_bytes_per_pixel);
+    r.label = fmt::format("rig default (auto, <= {:.1f} B/px)", o.choice.max_bytes_per_pixel);
     add(r);
+    table.Advance(1, "the default done");
   }
   {
     // The candidates `rig fit --max-bytes-per-pixel <large_budget>` has.
@@ -254,9 +282,10 @@ Result<std::vector<RtiLooRow>> RtiLooTable(const RtiCapture& cap, const RtiLooOp
     big.validation_pixels = o.choice.validation_pixels;
     RIG_ASSIGN_OR_RETURN(RtiLooRow r,
                          PcaRow(cap, big, folds,
-                                fmt::format("auto within {:.0f} B/px", o.large_budget), tmp));
-    r.label = fmt::format("rig pca, <= {:.0f} B/px", o.large_budget);
+                                fmt::format("auto within {:.0f} B/px", o.large_budget), tmp, true));
+    r.label = fmt::format("rig auto, <= {:.0f} B/px", o.large_budget);
     add(r);
+    table.Advance(1, fmt::format("pca within {:.0f} B/px done", o.large_budget));
   }
   {
     // relight's own settings (9 planes on its 8x8 grid, q95) filled our way.
@@ -268,6 +297,7 @@ Result<std::vector<RtiLooRow>> RtiLooTable(const RtiCapture& cap, const RtiLooOp
     RIG_ASSIGN_OR_RETURN(RtiLooRow r, PcaRow(cap, fixed, folds, "k 9, 8x8 grid, q95 (relight's sizes)", tmp));
     r.label = "rig pca at relight's sizes (9, 8x8)";
     add(r);
+    table.Advance(1, "pca at relight's sizes done");
   }
   if (o.harmonic) {
     RIG_ASSIGN_OR_RETURN(auto hrows, HarmonicRows(cap, tmp));

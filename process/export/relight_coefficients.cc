@@ -23,8 +23,8 @@ bool HasExtension(const std::string& path, const char* ext) {
 
 class RelightFamily final : public ReflectanceModel {
  public:
-  RelightFamily(RelightCoefficients c, std::string origin)
-      : c_(std::move(c)), origin_(std::move(origin)) {
+  RelightFamily(RelightCoefficients c, std::string origin, int web_quality)
+      : c_(std::move(c)), origin_(std::move(origin)), web_quality_(web_quality) {
     CheckRelightCoefficients(c_);
     spacing_deg_ = c_.lights.empty() ? 0 : SampleSpacingDeg(c_.lights);
   }
@@ -64,13 +64,16 @@ class RelightFamily final : public ReflectanceModel {
   Status Save(const std::string& path) const override {
     if (HasExtension(path, ".ptm")) return WritePtm(path, c_);
     if (HasExtension(path, ".rti")) return WriteRti(path, c_);
-    return WriteRelightWeb(path, c_, WebWriteOptions{});
+    WebWriteOptions o;
+    o.quality = web_quality_;
+    return WriteRelightWeb(path, c_, o);
   }
   const RelightCoefficients& coefficients() const { return c_; }
 
  private:
   RelightCoefficients c_;
   std::string origin_;
+  int web_quality_ = 95;
   LightFrameConfig frame_;
   double spacing_deg_ = 0;
 };
@@ -184,8 +187,9 @@ cv::Mat RenderRelight(const RelightCoefficients& c, const Vec3& direction) {
   return out;
 }
 
-std::unique_ptr<ReflectanceModel> WrapRelight(RelightCoefficients c, std::string origin) {
-  return std::make_unique<RelightFamily>(std::move(c), std::move(origin));
+std::unique_ptr<ReflectanceModel> WrapRelight(RelightCoefficients c, std::string origin,
+                                              int web_quality) {
+  return std::make_unique<RelightFamily>(std::move(c), std::move(origin), web_quality);
 }
 
 const RelightCoefficients* RelightCoefficientsOf(const ReflectanceModel& model) {

@@ -60,8 +60,9 @@ cv::Mat RenderRelight(const RelightCoefficients& c, const Vec3& direction);
 // decode of value / 255), identity light frame. The region check uses `lights` when known;
 // without them (legacy files carry none) every direction above the horizon counts as inside.
 // `origin` says where it came from, for Describe(). Save() writes by the path's form: .ptm,
-// .rti, otherwise a web-format folder.
-std::unique_ptr<ReflectanceModel> WrapRelight(RelightCoefficients c, std::string origin);
+// .rti, otherwise a web-format folder with its planes at JPEG quality `web_quality`.
+std::unique_ptr<ReflectanceModel> WrapRelight(RelightCoefficients c, std::string origin,
+                                              int web_quality = 95);
 // The coefficients of a model made by WrapRelight; nullptr for any other model.
 const RelightCoefficients* RelightCoefficientsOf(const ReflectanceModel& model);
 

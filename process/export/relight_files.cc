@@ -227,6 +227,79 @@ void QuantileRange(const cv::Mat& plane, int channel, double q, double* lo, doub
 
 // ---- web format ---------------------------------------------------------------------------
 
+RelightWebPlanes QuantiseRelightWeb(const RelightCoefficients& c, const WebWriteOptions& o) {
+  CheckRelightCoefficients(c);
+  // relight's planes in order, one channel each: rgb: plane 3j+k = coefficient j of channel k
+  // (R, G, B); lrgb: planes 0..2 = the albedo's R, G, B bytes, planes 3..8 = luminance terms.
+  std::vector<cv::Mat> channels;
+  if (!c.lrgb) {
+    for (int j = 0; j < c.terms; ++j) {
+      std::vector<cv::Mat> bgr;
+      cv::split(c.planes[j], bgr);
+      channels.insert(channels.end(), {bgr[2], bgr[1], bgr[0]});
+    }
+  } else {
+    std::vector<cv::Mat> bgr;
+    cv::split(c.albedo, bgr);
+    channels = {bgr[2], bgr[1], bgr[0]};
+    for (int j = 0; j < c.terms; ++j) channels.push_back(c.planes[j]);
+  }
+  const int nplanes = static_cast<int>(channels.size());
+  RelightWebPlanes out;
+  out.scale.resize(nplanes);
+  out.bias.resize(nplanes);
+  for (int p = 0; p < nplanes; ++p) {
+    if (c.lrgb && p < 3) {  // relight renders the albedo from the bytes as they are
+      out.scale[p] = 1;
+      out.bias[p] = 0;
+    } else {
+      double lo, hi;
+      QuantileRange(channels[p], 0, o.quantile, &lo, &hi);
+      out.scale[p] = (hi - lo) / 255.0;
+      out.bias[p] = -lo / (hi - lo);
+    }
+  }
+  for (int j = 0; 3 * j < nplanes; ++j) {
+    cv::Mat rgb = cv::Mat::zeros(c.height, c.width, CV_8UC3);  // unused channels stay 0
+    for (int k = 0; k < 3 && 3 * j + k < nplanes; ++k) {
+      const int p = 3 * j + k;
+      const bool raw = c.lrgb && p < 3;
+      const double lo = raw ? 0 : -out.bias[p] * out.scale[p] * 255.0, step = raw ? 1 : out.scale[p];
+      for (int y = 0; y < c.height; ++y) {
+        const float* in = channels[p].ptr<float>(y);
+        uint8_t* px = rgb.ptr<uint8_t>(y);
+        for (int x = 0; x < c.width; ++x) px[3 * x + k] = ToByte((in[x] - lo) / step);
+      }
+    }
+    out.files.push_back(std::move(rgb));
+  }
+  return out;
+}
+
+std::string RelightWebInfo(const RelightCoefficients& c, const RelightWebPlanes& q,
+                           const WebWriteOptions& o) {
+  nlohmann::ordered_json info;
+  info["width"] = c.width;
+  info["height"] = c.height;
+  info["format"] = "jpg";
+  info["type"] = RelightTypeName(c.type);
+  info["colorspace"] = c.colorspace();
+  if (!c.lights.empty()) {
+    auto lights = nlohmann::ordered_json::array();
+    for (const auto& l : c.lights)
+      for (double v : l) lights.push_back(std::round(v * 1000) / 1000);
+    info["lights"] = lights;
+  }
+  info["nplanes"] = static_cast<int>(q.scale.size());
+  info["quality"] = o.quality;
+  info["colorprofile"] = "sRGB";
+  nlohmann::ordered_json material;
+  material["scale"] = q.scale;
+  material["bias"] = q.bias;
+  info["materials"] = nlohmann::ordered_json::array({material});
+  return info.dump() + "\n";
+}
+
 Status WriteRelightWeb(const std::string& folder, const RelightCoefficients& c,
                        const WebWriteOptions& o) {
   CheckRelightCoefficients(c);
@@ -247,70 +320,12 @@ Status WriteRelightWeb(const std::string& folder, const RelightCoefficients& c,
   fs::create_directories(folder, ec);
   if (ec) return MakeError(ErrorCode::kIo, folder, "cannot create: {}", ec.message());
 
-  // relight's planes in order, one channel each: rgb: plane 3j+k = coefficient j of channel k
-  // (R, G, B); lrgb: planes 0..2 = the albedo's R, G, B bytes, planes 3..8 = luminance terms.
-  std::vector<cv::Mat> channels;
-  if (!c.lrgb) {
-    for (int j = 0; j < c.terms; ++j) {
-      std::vector<cv::Mat> bgr;
-      cv::split(c.planes[j], bgr);
-      channels.insert(channels.end(), {bgr[2], bgr[1], bgr[0]});
-    }
-  } else {
-    std::vector<cv::Mat> bgr;
-    cv::split(c.albedo, bgr);
-    channels = {bgr[2], bgr[1], bgr[0]};
-    for (int j = 0; j < c.terms; ++j) channels.push_back(c.planes[j]);
-  }
-  const int nplanes = static_cast<int>(channels.size());
-  std::vector<double> scale(nplanes), bias(nplanes);
-  for (int p = 0; p < nplanes; ++p) {
-    if (c.lrgb && p < 3) {  // relight renders the albedo from the bytes as they are
-      scale[p] = 1;
-      bias[p] = 0;
-    } else {
-      double lo, hi;
-      QuantileRange(channels[p], 0, o.quantile, &lo, &hi);
-      scale[p] = (hi - lo) / 255.0;
-      bias[p] = -lo / (hi - lo);
-    }
-  }
-  for (int j = 0; 3 * j < nplanes; ++j) {
-    cv::Mat rgb = cv::Mat::zeros(c.height, c.width, CV_8UC3);  // unused channels stay 0
-    for (int k = 0; k < 3 && 3 * j + k < nplanes; ++k) {
-      const int p = 3 * j + k;
-      const bool raw = c.lrgb && p < 3;
-      const double lo = raw ? 0 : -bias[p] * scale[p] * 255.0, step = raw ? 1 : scale[p];
-      for (int y = 0; y < c.height; ++y) {
-        const float* in = channels[p].ptr<float>(y);
-        uint8_t* out = rgb.ptr<uint8_t>(y);
-        for (int x = 0; x < c.width; ++x) out[3 * x + k] = ToByte((in[x] - lo) / step);
-      }
-    }
+  const RelightWebPlanes q = QuantiseRelightWeb(c, o);
+  for (size_t j = 0; j < q.files.size(); ++j) {
     const std::string plane = (fs::path(folder) / fmt::format("plane_{}.jpg", j)).string();
-    RIG_TRY(WriteJpeg(plane, rgb, o.ycbcr ? JpegColor::kYcbcr : JpegColor::kRgb, o.quality));
+    RIG_TRY(WriteJpeg(plane, q.files[j], o.ycbcr ? JpegColor::kYcbcr : JpegColor::kRgb, o.quality));
   }
-
-  nlohmann::ordered_json info;
-  info["width"] = c.width;
-  info["height"] = c.height;
-  info["format"] = "jpg";
-  info["type"] = RelightTypeName(c.type);
-  info["colorspace"] = c.colorspace();
-  if (!c.lights.empty()) {
-    auto lights = nlohmann::ordered_json::array();
-    for (const auto& l : c.lights)
-      for (double v : l) lights.push_back(std::round(v * 1000) / 1000);
-    info["lights"] = lights;
-  }
-  info["nplanes"] = nplanes;
-  info["quality"] = o.quality;
-  info["colorprofile"] = "sRGB";
-  nlohmann::ordered_json material;
-  material["scale"] = scale;
-  material["bias"] = bias;
-  info["materials"] = nlohmann::ordered_json::array({material});
-  const std::string text = info.dump() + "\n";
+  const std::string text = RelightWebInfo(c, q, o);
   return WriteFile((fs::path(folder) / "info.json").string(), text, {});
 }
 

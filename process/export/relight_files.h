@@ -30,6 +30,16 @@ struct WebWriteOptions {
 // Material::Plane reads them: c = 255·(byte/255 − bias)·scale, range from the quantiles.
 Status WriteRelightWeb(const std::string& folder, const RelightCoefficients& c,
                        const WebWriteOptions& options);
+// The planes as WriteRelightWeb writes them, before JPEG: the files' 8-bit images (plane_j's
+// R, G, B = planes 3j, 3j+1, 3j+2; unused channels 0) and every plane's scale and bias.
+struct RelightWebPlanes {
+  std::vector<cv::Mat> files;  // CV_8UC3, channel order R, G, B as stored
+  std::vector<double> scale, bias;
+};
+RelightWebPlanes QuantiseRelightWeb(const RelightCoefficients& c, const WebWriteOptions& options);
+// The info.json text WriteRelightWeb writes for those planes.
+std::string RelightWebInfo(const RelightCoefficients& c, const RelightWebPlanes& planes,
+                           const WebWriteOptions& options);
 // Types "ptm" (18 planes, rgb; 9 planes, lrgb) and "hsh" (27 or 12 planes, rgb).
 Result<RelightCoefficients> ReadRelightWeb(const std::string& folder);
 // The same checks of info.json and of every plane file's header (size, channels), without

@@ -165,7 +165,7 @@ Result<RelightFit> FitRelightToSamples(const LightSamples& s, const RelightTarge
   std::vector<int> all(s.lights());
   for (int l = 0; l < s.lights(); ++l) all[l] = l;
   out.coefficients = Finished(FitRgb(s, t, all, o.threads, &out.refitted_pixels), t);
-  out.fitted_psnr_db = PsnrAtImages(s, out.coefficients, all);
+  if (o.fitted_psnr) out.fitted_psnr_db = PsnrAtImages(s, out.coefficients, all);
   out.fit_s = FitSeconds(t0);
   if (o.every <= 0) return out;
   const auto t1 = Clock::now();

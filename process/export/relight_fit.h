@@ -22,6 +22,9 @@ struct RelightFitOptions {
   // quantisation counted), in a scratch folder of the system's temporary directory.
   std::string format = "ptm";
   int threads = 2;
+  // The fitted model rendered at every image for fitted_psnr_db (a render per image); off when
+  // only the coefficients are wanted (the choice across families fits many).
+  bool fitted_psnr = true;
 };
 
 struct RelightFit {

@@ -12,6 +12,8 @@
 #include "config/atomic_file.h"
 #include "config/log.h"
 #include "process/evaluate/rti_loo.h"
+#include "process/export/lp_choice.h"
+#include "process/export/relight_coefficients.h"
 #include "process/export/relight_files.h"
 #include "process/export/relight_fit.h"
 #include "process/model/any/load_model.h"
@@ -167,7 +169,8 @@ int RunLpStreamed(const FitArgs& a, const std::vector<LpEntry>& entries, const R
   }
   const double bpp = static_cast<double>(ModelBytesOnDisk(a.out)) /
                      (static_cast<double>(fit->width) * fit->height);
-  std::printf("rig fit: wrote %s (%.2f B/px): pca-bilinear, %s; masked %.1f%% of samples (%.1f%% "
+  std::printf("rig fit: wrote %s (%.2f B/px): pca-bilinear (the streamed fit's candidates are "
+              "PCA's only), %s; masked %.1f%% of samples (%.1f%% "
               "of pixels); streamed in %d bands: sample %.2f s, choice %.2f s, planes %.2f s\n",
               a.out.c_str(), bpp, fit->choice.reason.c_str(), 100 * fit->masked_fraction,
               100 * fit->pixels_with_masked, fit->bands, fit->gather_s, fit->choice_s,
@@ -341,12 +344,13 @@ int RunLp(FitArgs a, const Config& config) {
                                         req.family));
   }
   if (streamed) return RunLpStreamed(a, entries, req, sample_bytes);
-  auto fit = FitRti(*capture, req);
+  auto fit = FitRtiAcrossFamilies(*capture, req);
   if (!fit.ok()) return ReportError("fit", fit.error());
   // A folder model is written whole (the old one or the new one, never a mix); an EXR through
   // the one writer as it is.
   const std::string fam = fit->model->family();
-  Status saved = fam == "pca-bilinear" || fam == "neural"
+  const bool web = RelightCoefficientsOf(*fit->model) != nullptr;  // relight's web folder
+  Status saved = fam == "pca-bilinear" || fam == "neural" || web
                      ? WriteModelFolder(a.out, [&](const std::string& dir) { return fit->model->Save(dir); })
                      : fit->model->Save(a.out);
   if (!saved.ok()) return ReportError("fit", saved.error());

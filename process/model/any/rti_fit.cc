@@ -175,6 +175,15 @@ std::vector<int> LightsBelowHorizon(const RtiCapture& capture) {
   return out;
 }
 
+std::string RtiReportHeader(const RtiCapture& cap, const RtiFitRequest& req) {
+  return fmt::format(
+      "# Model of {}\n\n{} images {}x{}; masked (at or below {} or at or above {} in any "
+      "channel, per channel): {} sample-channels, {:.1f}% of all, in {:.1f}% of pixels\n\n",
+      cap.lp, cap.samples.lights(), cap.samples.width, cap.samples.height,
+      req.choice.base.thresholds.black_max, req.choice.base.thresholds.clipped_min,
+      cap.masked_samples, 100 * cap.masked_fraction, 100 * cap.pixels_with_masked);
+}
+
 Result<RtiFitResult> FitRti(const RtiCapture& cap, const RtiFitRequest& req) {
   RtiFitResult out;
   out.family = req.family;
@@ -188,12 +197,7 @@ Result<RtiFitResult> FitRti(const RtiCapture& cap, const RtiFitRequest& req) {
                        below.size(), req.family == "hsh" ? "hsh" : "pca");
     }
   }
-  out.report = fmt::format(
-      "# Model of {}\n\n{} images {}x{}; masked (at or below {} or at or above {} in any "
-      "channel, per channel): {} sample-channels, {:.1f}% of all, in {:.1f}% of pixels\n\n",
-      cap.lp, cap.samples.lights(), cap.samples.width, cap.samples.height,
-      req.choice.base.thresholds.black_max, req.choice.base.thresholds.clipped_min,
-      cap.masked_samples, 100 * cap.masked_fraction, 100 * cap.pixels_with_masked);
+  out.report = RtiReportHeader(cap, req);
   if (req.family == "auto" || req.family == "pca") {
     PcaChoiceOptions co = req.choice;
     if (req.components > 0) co.components = {req.components};

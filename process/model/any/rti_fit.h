@@ -60,6 +60,8 @@ struct RtiFitResult {
 };
 
 Result<RtiFitResult> FitRti(const RtiCapture& capture, const RtiFitRequest& request);
+// The report's first lines: the capture, its size, what the mask left out.
+std::string RtiReportHeader(const RtiCapture& capture, const RtiFitRequest& request);
 
 // Lights at or below the horizon (z <= 0) by .lp line: the hemispherical families (pca, hsh)
 // refuse them.

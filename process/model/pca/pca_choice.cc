@@ -41,6 +41,19 @@ LightSamples PickPixels(const LightSamples& s, const std::vector<size_t>& pixels
 
 }  // namespace
 
+std::vector<int> PcaChoiceHeldOutLights(int lights, const PcaChoiceOptions& o) {
+  std::vector<int> held;
+  for (int l = 0; l < lights; l += std::max(2, o.validation_every)) held.push_back(l);
+  return held;
+}
+
+std::vector<size_t> PcaChoiceEvalPixels(size_t sampled, const PcaChoiceOptions& o) {
+  std::vector<size_t> eval;
+  const size_t step = std::max<size_t>(1, sampled / std::max<size_t>(1, o.validation_pixels));
+  for (size_t i = 0; i < sampled; i += step) eval.push_back(i);
+  return eval;
+}
+
 cv::Rect PcaChoiceCrop(int width, int height) {
   const int max_side = 256;
   const int w = std::min(width, max_side), h = std::min(height, max_side);
@@ -76,12 +89,6 @@ struct GridModelError {
   PcaBasis full_basis;           // on all lights, for sizes
 };
 
-// The lights held out to score the candidates: every validation_every-th.
-std::vector<int> HeldOutLights(int lights, const PcaChoiceOptions& o) {
-  std::vector<int> held;
-  for (int l = 0; l < lights; l += std::max(2, o.validation_every)) held.push_back(l);
-  return held;
-}
 
 // 1. Model error at held-out lights, for every grid and every number of components: the
 //    components without the validation lights (exact, from the kept covariance), the grid
@@ -89,15 +96,13 @@ std::vector<int> HeldOutLights(int lights, const PcaChoiceOptions& o) {
 Result<std::vector<GridModelError>> HeldOutModelErrors(const LightSamples& s,
                                                        const PcaComponents& comps,
                                                        const PcaChoiceOptions& o, int* kmax_io) {
-  const std::vector<int> held = HeldOutLights(s.lights(), o);
+  const std::vector<int> held = PcaChoiceHeldOutLights(s.lights(), o);
   const PcaComponents train = PcaComponentsWithout(comps, held, *kmax_io);
   // No more components than the other lights' samples span (fewer where some are degenerate).
   *kmax_io = std::min<int>(*kmax_io, static_cast<int>(train.vectors.cols()));
   const int kmax = *kmax_io;
   if (kmax < 1) return MakeError(ErrorCode::kInvalidInput, "pca choice", "too few lights");
-  std::vector<size_t> eval;
-  const size_t step = std::max<size_t>(1, comps.subset.size() / o.validation_pixels);
-  for (size_t i = 0; i < comps.subset.size(); i += step) eval.push_back(i);  // into `sampled`
+  const std::vector<size_t> eval = PcaChoiceEvalPixels(comps.subset.size(), o);  // into `sampled`
   const LightSamples picked = PickPixels(s, eval);
   LightSamples fit_part = picked;
   for (auto it = held.rbegin(); it != held.rend(); ++it) fit_part = WithoutLight(fit_part, *it);
@@ -313,6 +318,13 @@ int LargestCandidate(const PcaChoiceOptions& o) {
   return kmax;
 }
 
+Result<PcaModel> FitPcaChosen(const LightSamples& samples, const PcaComponents& components,
+                              const PcaOptions& po, PcaFitStats* stats) {
+  RIG_ASSIGN_OR_RETURN(PcaBasis basis,
+                       FitPcaBasis(components, po.components, po.grid_resolution, po.smoothness));
+  return FitPcaCoefficients(samples, std::move(basis), po, components.subset, stats);
+}
+
 Result<PcaAutoFit> FitPcaAuto(const LightSamples& samples, const PcaComponents* given,
                               const PcaChoiceOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -325,11 +337,8 @@ Result<PcaAutoFit> FitPcaAuto(const LightSamples& samples, const PcaComponents* 
   PcaAutoFit out;
   RIG_ASSIGN_OR_RETURN(out.choice, ChoosePca(samples, *given, o));
   const auto t2 = std::chrono::steady_clock::now();
-  const PcaOptions& po = out.choice.options;
-  RIG_ASSIGN_OR_RETURN(PcaBasis basis,
-                       FitPcaBasis(*given, po.components, po.grid_resolution, po.smoothness));
   RIG_ASSIGN_OR_RETURN(out.model,
-                       FitPcaCoefficients(samples, std::move(basis), po, given->subset, &out.stats));
+                       FitPcaChosen(samples, *given, out.choice.options, &out.stats));
   const auto t3 = std::chrono::steady_clock::now();
   out.stats.time_s = std::chrono::duration<double>(t3 - t0).count();
   auto s = [](auto a, auto b) { return std::chrono::duration<double>(b - a).count(); };

@@ -54,6 +54,11 @@ struct PcaChoiceInput {
   LightSamples sampled;  // the pixels of the components' `subset`, in that order (one row)
   LightSamples crop;     // the pixels of PcaChoiceCrop, row-major, crop width × height
 };
+// The split the candidates are scored on: the lights held out (every validation_every-th, at
+// least every 2nd), and the pixels of `sampled` (indices into PcaChoiceInput::sampled) whose
+// predictions there are scored. Other families compared with PCA use the same split.
+std::vector<int> PcaChoiceHeldOutLights(int lights, const PcaChoiceOptions& options);
+std::vector<size_t> PcaChoiceEvalPixels(size_t sampled, const PcaChoiceOptions& options);
 // The central crop (at most 256 × 256) whose planes measure what JPEG costs and adds.
 cv::Rect PcaChoiceCrop(int width, int height);
 PcaChoiceInput PcaChoiceInputOf(const LightSamples& samples, const std::vector<size_t>& subset);
@@ -70,6 +75,10 @@ struct PcaAutoFit {
 Result<PcaAutoFit> FitPcaAuto(const LightSamples& samples, const PcaComponents* components,
                               const PcaChoiceOptions& options);
 int LargestCandidate(const PcaChoiceOptions& options);
+// The model of a chosen size (`options` as a PcaChoice's): the basis from the components, every
+// pixel's coefficients — FitPcaAuto's last step.
+Result<PcaModel> FitPcaChosen(const LightSamples& samples, const PcaComponents& components,
+                              const PcaOptions& options, PcaFitStats* stats = nullptr);
 
 // The candidates for a byte budget, one rule for `rig fit --max-bytes-per-pixel B`, the
 // leave-one-out report's rows and the benchmarks: the default candidates, and from twice the
