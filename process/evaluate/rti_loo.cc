@@ -8,6 +8,8 @@
 #include <cmath>
 #include <filesystem>
 #include <limits>
+#include <map>
+#include <algorithm>
 #include <fstream>
 
 #include <fmt/format.h>
@@ -63,6 +65,10 @@ Result<RtiLooRow> PcaRow(const RtiCapture& cap, const PcaChoiceOptions& co,
                                     : "pca refitted without each held-out image",
                     static_cast<int64_t>(folds.size()));
   size_t basis_folds = 0;
+  // How the choice moves with the image left out: every fold's size on disk and what it took.
+  std::vector<double> fold_bpp;
+  std::map<std::string, int> fold_choices;
+  const double pixels = static_cast<double>(cap.samples.pixels());
   auto score = LeaveOneOut(cap.samples, folds, [&](const LightSamples& fold, int held,
                                                    const Vec3& light) -> Result<FoldPrediction> {
     const FoldDone counted{task, held};
@@ -79,6 +85,8 @@ Result<RtiLooRow> PcaRow(const RtiCapture& cap, const PcaChoiceOptions& co,
     if (across_families) {
       RIG_ASSIGN_OR_RETURN(LpAutoFit fit, FitLpAuto(fold, &comps, co));
       RIG_TRY(fit.model->Save(tmp));
+      fold_bpp.push_back(static_cast<double>(FolderBytes(tmp)) / pixels);
+      ++fold_choices[LpChosenWords(fit.choice)];
       if (fit.choice.basis_chosen >= 0) {
         ++basis_folds;
         RIG_ASSIGN_OR_RETURN(RelightCoefficients back, ReadRelightWeb(tmp));
@@ -103,8 +111,14 @@ Result<RtiLooRow> PcaRow(const RtiCapture& cap, const PcaChoiceOptions& co,
     const size_t n = fit.choice.pca.candidates.size() + fit.choice.bases.size();
     if (fit.choice.basis_chosen >= 0)
       row.family = RelightTypeName(fit.choice.bases[fit.choice.basis_chosen].target.type);
-    row.setting = fmt::format("{}; all images: {} (of {} candidates); a basis in {} of {} folds",
-                              setting, LpChosenWords(fit.choice), n, basis_folds, folds.size());
+    const auto [lo, hi] = std::minmax_element(fold_bpp.begin(), fold_bpp.end());
+    int most = 0;
+    for (const auto& [what, count] : fold_choices) most = std::max(most, count);
+    row.setting = fmt::format(
+        "{}; all images: {} (of {} candidates); a basis in {} of {} folds; the folds' sizes "
+        "{:.2f}-{:.2f} B/px, {} distinct choices (the commonest in {})",
+        setting, LpChosenWords(fit.choice), n, basis_folds, folds.size(),
+        fold_bpp.empty() ? 0.0 : *lo, fold_bpp.empty() ? 0.0 : *hi, fold_choices.size(), most);
   } else {
     RIG_ASSIGN_OR_RETURN(PcaAutoFit fit, FitPcaAuto(cap.samples, nullptr, co));
     const PcaOptions& chosen = fit.choice.options;

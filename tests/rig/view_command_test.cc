@@ -366,9 +366,14 @@ TEST_F(ViewTest, HdrModelUsesWardsCurveOfTheDefaultLight) {
   const std::string model = WriteShModel(dir_, FitSpace::kLinear);
   const Vec3 d = LightDirection(40, 15);
   const std::string view = dir_ + "/hdr";
+  // The conversion reports its stages off a terminal as every long job does (here at every step).
+  setenv("RIG_PROGRESS_EVERY_S", "0.000001", 1);
   const auto r = RunRig(fmt::format("view {} --light {:.9f},{:.9f},{:.9f} --out {}", model, d[0], d[1], d[2], view));
+  setenv("RIG_PROGRESS_EVERY_S", "100000", 1);  // as tests/test_env.cc sets it
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_THAT(r.output, HasSubstr("Ward"));
+  EXPECT_THAT(r.output, HasSubstr("progress: refitting ")) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("progress: measuring the error ")) << r.output;
   // against rig render of the original (Ward, recomputed): the refit onto HSH in sRGB
   // values and the 8-bit planes are in the difference
   ExpectMatches(view, {{40, 15}}, 2.0, 40, model);
