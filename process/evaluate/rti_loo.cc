@@ -299,7 +299,7 @@ Result<std::vector<RtiLooRow>> RtiLooTable(const RtiCapture& cap, const RtiLooOp
                                 fmt::format("auto within {:.0f} B/px", o.large_budget), tmp, true));
     r.label = fmt::format("rig auto, <= {:.0f} B/px", o.large_budget);
     add(r);
-    table.Advance(1, fmt::format("pca within {:.0f} B/px done", o.large_budget));
+    table.Advance(1, fmt::format("auto within {:.0f} B/px done", o.large_budget));
   }
   {
     // relight's own settings (9 planes on its 8x8 grid, q95) filled our way.

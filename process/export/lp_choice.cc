@@ -20,19 +20,6 @@ using Clock = std::chrono::steady_clock;
 
 double LpChoiceSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-// Some pixels' samples as a one-row image (values only).
-LightSamples LpChoicePick(const LightSamples& s, const std::vector<size_t>& pixels) {
-  LightSamples out;
-  out.width = static_cast<int>(pixels.size());
-  out.height = 1;
-  out.directions = s.directions;
-  const size_t row = static_cast<size_t>(s.lights()) * 3;
-  out.values.resize(pixels.size() * row);
-  for (size_t i = 0; i < pixels.size(); ++i)
-    std::copy_n(s.values.data() + pixels[i] * row, row, out.values.data() + i * row);
-  return out;
-}
-
 std::string LpBasisName(const RelightTarget& t) {
   return fmt::format("{} {}", RelightTypeName(t.type), t.terms);
 }
@@ -118,7 +105,7 @@ Result<std::vector<BasisCandidate>> LpJpegCandidates(const RelightCoefficients& 
 Result<std::vector<BasisCandidate>> LpScoreBases(const PcaChoiceInput& in, const PcaChoiceOptions& o) {
   const LightSamples& s = in.sampled;
   const std::vector<int> held = PcaChoiceHeldOutLights(s.lights(), o);
-  LightSamples picked = LpChoicePick(s, PcaChoiceEvalPixels(s.pixels(), o));
+  LightSamples picked = PcaChoicePickPixels(s, PcaChoiceEvalPixels(s.pixels(), o));
   LpChoiceMask(o, &picked);
   std::vector<int> kept;
   for (int l = 0; l < s.lights(); ++l)

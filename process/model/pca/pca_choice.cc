@@ -26,8 +26,9 @@ double BasisJsonBytes(const PcaBasis& b, int k) {
   return chars;
 }
 
-// The samples of some pixels, as a one-row image.
-LightSamples PickPixels(const LightSamples& s, const std::vector<size_t>& pixels) {
+}  // namespace
+
+LightSamples PcaChoicePickPixels(const LightSamples& s, const std::vector<size_t>& pixels) {
   LightSamples out;
   out.width = static_cast<int>(pixels.size());
   out.height = 1;
@@ -38,8 +39,6 @@ LightSamples PickPixels(const LightSamples& s, const std::vector<size_t>& pixels
     std::copy_n(s.values.data() + pixels[i] * row, row, out.values.data() + i * row);
   return out;
 }
-
-}  // namespace
 
 std::vector<int> PcaChoiceHeldOutLights(int lights, const PcaChoiceOptions& o) {
   std::vector<int> held;
@@ -63,13 +62,13 @@ cv::Rect PcaChoiceCrop(int width, int height) {
 PcaChoiceInput PcaChoiceInputOf(const LightSamples& s, const std::vector<size_t>& subset) {
   PcaChoiceInput in;
   in.pixels = s.pixels();
-  in.sampled = PickPixels(s, subset);
+  in.sampled = PcaChoicePickPixels(s, subset);
   const cv::Rect r = PcaChoiceCrop(s.width, s.height);
   std::vector<size_t> picked;
   for (int y = 0; y < r.height; ++y)
     for (int x = 0; x < r.width; ++x)
       picked.push_back(static_cast<size_t>(r.y + y) * s.width + r.x + x);
-  in.crop = PickPixels(s, picked);
+  in.crop = PcaChoicePickPixels(s, picked);
   in.crop.width = r.width;
   in.crop.height = r.height;
   return in;
@@ -103,7 +102,7 @@ Result<std::vector<GridModelError>> HeldOutModelErrors(const LightSamples& s,
   const int kmax = *kmax_io;
   if (kmax < 1) return MakeError(ErrorCode::kInvalidInput, "pca choice", "too few lights");
   const std::vector<size_t> eval = PcaChoiceEvalPixels(comps.subset.size(), o);  // into `sampled`
-  const LightSamples picked = PickPixels(s, eval);
+  const LightSamples picked = PcaChoicePickPixels(s, eval);
   LightSamples fit_part = picked;
   for (auto it = held.rbegin(); it != held.rend(); ++it) fit_part = WithoutLight(fit_part, *it);
   std::vector<size_t> all_eval(eval.size());

@@ -59,6 +59,8 @@ struct PcaChoiceInput {
 // predictions there are scored. Other families compared with PCA use the same split.
 std::vector<int> PcaChoiceHeldOutLights(int lights, const PcaChoiceOptions& options);
 std::vector<size_t> PcaChoiceEvalPixels(size_t sampled, const PcaChoiceOptions& options);
+// The samples of some pixels (indices into `samples`) as a one-row image, values only.
+LightSamples PcaChoicePickPixels(const LightSamples& samples, const std::vector<size_t>& pixels);
 // The central crop (at most 256 × 256) whose planes measure what JPEG costs and adds.
 cv::Rect PcaChoiceCrop(int width, int height);
 PcaChoiceInput PcaChoiceInputOf(const LightSamples& samples, const std::vector<size_t>& subset);
