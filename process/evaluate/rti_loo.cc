@@ -293,6 +293,7 @@ Result<std::vector<RtiLooRow>> RtiLooTable(const RtiCapture& cap, const RtiLooOp
     big.base = o.choice.base;
     big.tolerance_db = o.choice.tolerance_db;
     big.validation_every = o.choice.validation_every;
+    big.validation_splits = o.choice.validation_splits;
     big.validation_pixels = o.choice.validation_pixels;
     RIG_ASSIGN_OR_RETURN(RtiLooRow r,
                          PcaRow(cap, big, folds,

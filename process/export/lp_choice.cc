@@ -101,16 +101,11 @@ Result<std::vector<BasisCandidate>> LpJpegCandidates(const RelightCoefficients& 
   return out;
 }
 
-// Every basis at every quality on the PCA choice's split and crop.
+// Every basis at every quality on the PCA choice's splits and crop.
 Result<std::vector<BasisCandidate>> LpScoreBases(const PcaChoiceInput& in, const PcaChoiceOptions& o) {
   const LightSamples& s = in.sampled;
-  const std::vector<int> held = PcaChoiceHeldOutLights(s.lights(), o);
   LightSamples picked = PcaChoicePickPixels(s, PcaChoiceEvalPixels(s.pixels(), o));
   LpChoiceMask(o, &picked);
-  std::vector<int> kept;
-  for (int l = 0; l < s.lights(); ++l)
-    if (std::find(held.begin(), held.end(), l) == held.end()) kept.push_back(l);
-  const LightSamples fit_part = OnlyLights(picked, kept);
   // What 8 bits and JPEG do to the planes hardly depends on how masked samples were fitted
   // around (as for PCA's planes): the crop is fitted by one pseudo-inverse.
   const LightSamples& crop = in.crop;
@@ -120,14 +115,23 @@ Result<std::vector<BasisCandidate>> LpScoreBases(const PcaChoiceInput& in, const
   fo.fitted_psnr = false;
   std::vector<BasisCandidate> out;
   for (const RelightTarget& t : LpChoiceBases()) {
-    if (static_cast<int>(kept.size()) < t.terms) continue;
-    RIG_ASSIGN_OR_RETURN(RelightFit fold, FitRelightToSamples(fit_part, t, fo));
-    const double mse = LpHeldOutMse(picked, fold.coefficients, held);
+    double sum = 0, count = 0;
+    for (int r = 0; r < PcaChoiceSplits(o); ++r) {
+      const std::vector<int> held = PcaChoiceHeldOutLights(s.lights(), o, r);
+      std::vector<int> kept;
+      for (int l = 0; l < s.lights(); ++l)
+        if (std::find(held.begin(), held.end(), l) == held.end()) kept.push_back(l);
+      if (static_cast<int>(kept.size()) < t.terms) continue;
+      RIG_ASSIGN_OR_RETURN(RelightFit fold, FitRelightToSamples(OnlyLights(picked, kept), t, fo));
+      sum += LpHeldOutMse(picked, fold.coefficients, held) * static_cast<double>(held.size());
+      count += static_cast<double>(held.size());
+    }
+    if (count == 0) continue;
     RIG_ASSIGN_OR_RETURN(RelightFit whole, FitRelightToSamples(crop, t, fo));
     RIG_ASSIGN_OR_RETURN(auto cands, LpJpegCandidates(whole.coefficients, t, o,
                                                     static_cast<double>(in.pixels)));
     for (auto& c : cands) {
-      c.validation_mse = mse;
+      c.validation_mse = sum / count;
       c.psnr_db = 10 * std::log10(255.0 * 255.0 / std::max(c.validation_mse + c.jpeg_mse, 1e-9));
       out.push_back(c);
     }
@@ -210,10 +214,10 @@ Result<LpChoice> ChooseLpModel(const PcaChoiceInput& in, const PcaComponents& co
     out.pca.options.jpeg_quality = c.quality;
   }
   out.reason = fmt::format(
-      "{}: {:.2f} dB at held-out lights (every {}th light of the fit held out) — the smallest "
+      "{}: {:.2f} dB at held-out lights ({}) — the smallest "
       "of {} candidates ({} pca, {} of relight's bases in 8-bit planes) within {:.2f} dB of the "
       "best in the budget of {:.2f} B/px (the best: {}, {:.2f} dB)",
-      words(ch), ch.psnr, o.validation_every, all.size(), out.pca.candidates.size(),
+      words(ch), ch.psnr, PcaChoiceSplitWords(o), all.size(), out.pca.candidates.size(),
       out.bases.size(), o.tolerance_db, o.max_bytes_per_pixel, out.best, all[best].psnr);
   if (!all[best].within)
     out.reason = fmt::format("no candidate fits {:.2f} B/px; the smallest: {}", o.max_bytes_per_pixel, out.reason);

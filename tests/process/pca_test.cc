@@ -351,6 +351,26 @@ TEST(PcaChoice, PicksTheSmallestModelWithinToleranceAndSaysWhenNothingFits) {
   EXPECT_NE(tiny->choice.reason.find("no candidate fits"), std::string::npos);
 }
 
+TEST(PcaChoice, RepeatedSplitsHoldEveryLightOutOnce) {
+  PcaChoiceOptions o;
+  o.validation_every = 6;
+  o.validation_splits = 6;
+  std::vector<int> times(45, 0);
+  for (int r = 0; r < PcaChoiceSplits(o); ++r)
+    for (int l : PcaChoiceHeldOutLights(45, o, r)) ++times[l];
+  for (int l = 0; l < 45; ++l) EXPECT_EQ(times[l], 1) << "light " << l;
+  EXPECT_NE(PcaChoiceSplitWords(o).find("once, in 6 splits"), std::string::npos);
+  o.validation_splits = 3;  // offsets 0, 2, 4: half the lights, each once
+  std::fill(times.begin(), times.end(), 0);
+  for (int r = 0; r < PcaChoiceSplits(o); ++r)
+    for (int l : PcaChoiceHeldOutLights(45, o, r)) ++times[l];
+  for (int l = 0; l < 45; ++l) EXPECT_EQ(times[l], l % 2 == 0 ? 1 : 0) << "light " << l;
+  o.validation_splits = 40;  // no more splits than lights in a period
+  EXPECT_EQ(PcaChoiceSplits(o), 6);
+  o.validation_splits = 1;
+  EXPECT_EQ(PcaChoiceHeldOutLights(45, o), (std::vector<int>{0, 6, 12, 18, 24, 30, 36, 42}));
+}
+
 TEST(LeaveOneOut, EveryFoldLacksItsHeldOutImageAndIsScoredInEightBits) {
   const Scene scene;
   const LightSamples s = MakeSamples(scene, HemisphereLights());

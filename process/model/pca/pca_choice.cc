@@ -1,4 +1,4 @@
-// The PCA size chosen by held-out error per byte: one validation split over lights for the
+// The PCA size chosen by held-out error per byte: validation splits over lights for the
 // model error of every (components, grid), the planes' own JPEG error and size for every
 // quality, the smallest candidate within tolerance of the best within budget.
 #include "process/model/pca/pca_choice.h"
@@ -40,15 +40,30 @@ LightSamples PcaChoicePickPixels(const LightSamples& s, const std::vector<size_t
   return out;
 }
 
-std::vector<int> PcaChoiceHeldOutLights(int lights, const PcaChoiceOptions& o) {
+int PcaChoiceSplits(const PcaChoiceOptions& o) {
+  return std::clamp(o.validation_splits, 1, std::max(2, o.validation_every));
+}
+
+std::vector<int> PcaChoiceHeldOutLights(int lights, const PcaChoiceOptions& o, int split) {
+  const int every = std::max(2, o.validation_every);
   std::vector<int> held;
-  for (int l = 0; l < lights; l += std::max(2, o.validation_every)) held.push_back(l);
+  for (int l = split * every / PcaChoiceSplits(o); l < lights; l += every) held.push_back(l);
   return held;
+}
+
+std::string PcaChoiceSplitWords(const PcaChoiceOptions& o) {
+  const int every = std::max(2, o.validation_every), splits = PcaChoiceSplits(o);
+  if (splits == 1) return fmt::format("every {}th light of the fit held out", every);
+  if (splits == every) return fmt::format("every light of the fit held out once, in {} splits", splits);
+  return fmt::format("every {}th light of the fit held out, in {} shifted splits", every, splits);
 }
 
 std::vector<size_t> PcaChoiceEvalPixels(size_t sampled, const PcaChoiceOptions& o) {
   std::vector<size_t> eval;
-  const size_t step = std::max<size_t>(1, sampled / std::max<size_t>(1, o.validation_pixels));
+  // The pixels are shared by the splits: what moves the estimate is which lights are held
+  // out, not which pixels are scored (8192 pixels in each of 6 splits chose as 1365 did).
+  const size_t want = std::max<size_t>(256, o.validation_pixels / PcaChoiceSplits(o));
+  const size_t step = std::max<size_t>(1, sampled / std::max<size_t>(1, want));
   for (size_t i = 0; i < sampled; i += step) eval.push_back(i);
   return eval;
 }
@@ -89,50 +104,62 @@ struct GridModelError {
 };
 
 
-// 1. Model error at held-out lights, for every grid and every number of components: the
-//    components without the validation lights (exact, from the kept covariance), the grid
-//    fitted to the others, coefficients of a sample of pixels through it.
+// 1. Model error at held-out lights, for every grid and every number of components, summed
+//    over the splits: in each, the components without its validation lights (exact, from the
+//    kept covariance), the grid fitted to the others, coefficients of a sample of pixels
+//    through it.
 Result<std::vector<GridModelError>> HeldOutModelErrors(const LightSamples& s,
                                                        const PcaComponents& comps,
                                                        const PcaChoiceOptions& o, int* kmax_io) {
-  const std::vector<int> held = PcaChoiceHeldOutLights(s.lights(), o);
-  const PcaComponents train = PcaComponentsWithout(comps, held, *kmax_io);
-  // No more components than the other lights' samples span (fewer where some are degenerate).
-  *kmax_io = std::min<int>(*kmax_io, static_cast<int>(train.vectors.cols()));
+  const int splits = PcaChoiceSplits(o);
+  std::vector<std::vector<int>> held(splits);
+  std::vector<PcaComponents> train(splits);
+  for (int r = 0; r < splits; ++r) {
+    held[r] = PcaChoiceHeldOutLights(s.lights(), o, r);
+    train[r] = PcaComponentsWithout(comps, held[r], *kmax_io);
+    // No more components than the other lights' samples span (fewer where some are degenerate).
+    *kmax_io = std::min<int>(*kmax_io, static_cast<int>(train[r].vectors.cols()));
+  }
   const int kmax = *kmax_io;
   if (kmax < 1) return MakeError(ErrorCode::kInvalidInput, "pca choice", "too few lights");
   const std::vector<size_t> eval = PcaChoiceEvalPixels(comps.subset.size(), o);  // into `sampled`
   const LightSamples picked = PcaChoicePickPixels(s, eval);
-  LightSamples fit_part = picked;
-  for (auto it = held.rbegin(); it != held.rend(); ++it) fit_part = WithoutLight(fit_part, *it);
   std::vector<size_t> all_eval(eval.size());
   for (size_t i = 0; i < eval.size(); ++i) all_eval[i] = i;
 
   std::vector<GridModelError> by_grid;
   for (int res : o.resolutions) {
     GridModelError g{res, std::vector<double>(kmax + 1, 0), {}};
-    RIG_ASSIGN_OR_RETURN(PcaBasis basis, FitPcaBasis(train, kmax, res, o.base.smoothness));
-    for (int k : o.components) {
-      if (k > kmax) continue;
-      PcaOptions po = o.base;
-      po.components = k;
-      po.grid_resolution = res;
-      RIG_ASSIGN_OR_RETURN(PcaModel m,
-                           FitPcaCoefficients(fit_part, TruncatePcaBasis(basis, k), po, all_eval));
-      double sum = 0;
-      for (int l : held) {
-        const cv::Mat pred = m.Render(s.directions[l]);
-        const float* pr = pred.ptr<float>();
-        for (size_t i = 0; i < eval.size(); ++i) {
-          for (int c = 0; c < 3; ++c) {
-            const float v = std::clamp(std::nearbyint(pr[i * 3 + (2 - c)] * 255.0f), 0.0f, 255.0f);
-            const double d = v - picked.value(i, l, c);
-            sum += d * d;
+    std::vector<double> count(kmax + 1, 0);
+    for (int r = 0; r < splits; ++r) {
+      LightSamples fit_part = picked;
+      for (auto it = held[r].rbegin(); it != held[r].rend(); ++it) fit_part = WithoutLight(fit_part, *it);
+      RIG_ASSIGN_OR_RETURN(PcaBasis basis, FitPcaBasis(train[r], kmax, res, o.base.smoothness));
+      for (int k : o.components) {
+        if (k > kmax) continue;
+        PcaOptions po = o.base;
+        po.components = k;
+        po.grid_resolution = res;
+        RIG_ASSIGN_OR_RETURN(PcaModel m,
+                             FitPcaCoefficients(fit_part, TruncatePcaBasis(basis, k), po, all_eval));
+        double sum = 0;
+        for (int l : held[r]) {
+          const cv::Mat pred = m.Render(s.directions[l]);
+          const float* pr = pred.ptr<float>();
+          for (size_t i = 0; i < eval.size(); ++i) {
+            for (int c = 0; c < 3; ++c) {
+              const float v = std::clamp(std::nearbyint(pr[i * 3 + (2 - c)] * 255.0f), 0.0f, 255.0f);
+              const double d = v - picked.value(i, l, c);
+              sum += d * d;
+            }
           }
         }
+        g.mse_by_k[k] += sum;
+        count[k] += static_cast<double>(held[r].size() * eval.size() * 3);
       }
-      g.mse_by_k[k] = sum / static_cast<double>(held.size() * eval.size() * 3);
     }
+    for (int k = 0; k <= kmax; ++k)
+      if (count[k] > 0) g.mse_by_k[k] /= count[k];
     RIG_ASSIGN_OR_RETURN(g.full_basis, FitPcaBasis(comps, kmax, res, o.base.smoothness));
     by_grid.push_back(std::move(g));
   }
@@ -288,10 +315,9 @@ Result<PcaChoice> ChoosePca(const PcaChoiceInput& in, const PcaComponents& comps
   choice.options.grid_resolution = ch.resolution;
   choice.options.jpeg_quality = ch.quality;
   choice.reason = fmt::format(
-      "{} components on a {}x{} grid at JPEG q{}: {:.2f} dB at held-out lights (every {}th "
-      "light of the fit held out) — the smallest of {} candidates within {:.2f} dB of the best "
+      "{} components on a {}x{} grid at JPEG q{}: {:.2f} dB at held-out lights ({}) — the smallest of {} candidates within {:.2f} dB of the best "
       "in the budget of {:.2f} B/px (the best: {} components, {}x{}, q{}, {:.2f} dB)",
-      ch.components, ch.resolution, ch.resolution, ch.quality, ch.psnr_db, o.validation_every,
+      ch.components, ch.resolution, ch.resolution, ch.quality, ch.psnr_db, PcaChoiceSplitWords(o),
       choice.candidates.size(), o.tolerance_db, o.max_bytes_per_pixel, best.components,
       best.resolution, best.resolution, best.quality, best.psnr_db);
   if (!best.within_budget) {

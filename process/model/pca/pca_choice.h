@@ -22,6 +22,13 @@ struct PcaChoiceOptions {
   double max_bytes_per_pixel = 3.4;
   double tolerance_db = 0.2;  // the smallest model within this of the best within budget
   int validation_every = 6;   // every n-th light is held out to score the candidates
+  // Repeated splits: split r holds out every n-th light from r·n/splits on, so with splits ==
+  // n every light is held out exactly once. One split's estimate moves with which 12 lights it
+  // holds out (a left-out image shifts them all); the candidates' errors summed over the
+  // splits move far less (docs/model.md).
+  int validation_splits = 6;
+  // Pixel-scorings over all splits: each split scores validation_pixels / splits (at least
+  // 256) pixels, the same ones.
   size_t validation_pixels = size_t{1} << 13;
   PcaOptions base;            // mask, thresholds, seed, threads, quantile
 };
@@ -54,10 +61,15 @@ struct PcaChoiceInput {
   LightSamples sampled;  // the pixels of the components' `subset`, in that order (one row)
   LightSamples crop;     // the pixels of PcaChoiceCrop, row-major, crop width × height
 };
-// The split the candidates are scored on: the lights held out (every validation_every-th, at
-// least every 2nd), and the pixels of `sampled` (indices into PcaChoiceInput::sampled) whose
+// The splits the candidates are scored on: the lights held out in each (every
+// validation_every-th, at least every 2nd, from the split's offset on), and the pixels of `sampled` (indices into PcaChoiceInput::sampled) whose
 // predictions there are scored. Other families compared with PCA use the same split.
-std::vector<int> PcaChoiceHeldOutLights(int lights, const PcaChoiceOptions& options);
+std::vector<int> PcaChoiceHeldOutLights(int lights, const PcaChoiceOptions& options,
+                                        int split = 0);
+int PcaChoiceSplits(const PcaChoiceOptions& options);  // validation_splits, within 1..n
+// How the split is said in a choice's reason: "every 6th light of the fit held out" or
+// "every light of the fit held out once, in 6 splits".
+std::string PcaChoiceSplitWords(const PcaChoiceOptions& options);
 std::vector<size_t> PcaChoiceEvalPixels(size_t sampled, const PcaChoiceOptions& options);
 // The samples of some pixels (indices into `samples`) as a one-row image, values only.
 LightSamples PcaChoicePickPixels(const LightSamples& samples, const std::vector<size_t>& pixels);
